@@ -1,0 +1,49 @@
+# artmotion — set-up, demo, tests, benchmarks.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+PIP    := $(PY) -m pip
+CONTRIB_CV := opencv-contrib-python-headless==5.0.0.93
+SAMPLE := data/TUD-Campus
+DEMO_OUT ?= out/demo
+
+.PHONY: install system-deps demo test bench clean
+
+# Debian packages: espeak-ng speaks the grounding dataset's words.
+system-deps:
+	@command -v espeak-ng >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq espeak-ng >/dev/null) \
+	      || echo "warning: could not install espeak-ng (grounding dataset will say so)"; \
+	  else echo "warning: espeak-ng missing and apt-get unavailable"; fi; }
+
+$(VENV)/.stamp-install: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -e '.[dev]'
+	# trackeval pulls opencv-python, which overwrites the contrib cv2 (HOG lives only there):
+	# remove it and put the contrib wheel back last.
+	-$(PIP) uninstall -y -q opencv-python
+	$(PIP) install -q --force-reinstall --no-deps $(CONTRIB_CV)
+	$(PY) -c "import cv2; cv2.HOGDescriptor(); print('cv2', cv2.__version__, 'with HOG')"
+	touch $@
+
+install: system-deps $(VENV)/.stamp-install
+
+demo: install
+	$(VENV)/bin/artmotion track $(SAMPLE) --out $(DEMO_OUT)/results.txt \
+	  --events $(DEMO_OUT)/events.jsonl --video $(DEMO_OUT)/annotated.mp4
+	$(VENV)/bin/artmotion eval $(SAMPLE)/gt/gt.txt $(DEMO_OUT)/results.txt
+	$(VENV)/bin/artmotion describe $(DEMO_OUT)/results.txt --events $(DEMO_OUT)/events.jsonl
+
+test: install
+	$(PY) -m pytest -q
+
+bench: install
+	$(PIP) install -q -e '.[dev,bench]'
+	-$(PIP) uninstall -y -q opencv-python
+	$(PIP) install -q --force-reinstall --no-deps $(CONTRIB_CV)
+	$(PY) benchmarks/tracking.py
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

@@ -1,0 +1,3 @@
+from artmotion.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,77 @@
+"""Axis-aligned boxes. The convention is MOTChallenge's ``[x, y, w, h]`` (top-left, size, pixels).
+
+Every function accepts a single box of shape ``(4,)`` or a stack ``(..., 4)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def xywh_to_xyxy(b) -> np.ndarray:
+    b = np.asarray(b, dtype=float)
+    return np.concatenate([b[..., :2], b[..., :2] + b[..., 2:4]], axis=-1)
+
+
+def xyxy_to_xywh(b) -> np.ndarray:
+    b = np.asarray(b, dtype=float)
+    return np.concatenate([b[..., :2], b[..., 2:4] - b[..., :2]], axis=-1)
+
+
+def box_center(b) -> np.ndarray:
+    b = np.asarray(b, dtype=float)
+    return b[..., :2] + 0.5 * b[..., 2:4]
+
+
+def box_from_center(center, size) -> np.ndarray:
+    c = np.asarray(center, dtype=float)
+    s = np.asarray(size, dtype=float)
+    return np.concatenate([c - 0.5 * s, s], axis=-1)
+
+
+def box_area(b) -> np.ndarray:
+    b = np.asarray(b, dtype=float)
+    return np.clip(b[..., 2], 0, None) * np.clip(b[..., 3], 0, None)
+
+
+def intersection(a, b) -> np.ndarray:
+    """Area of the intersection of boxes ``a`` and ``b`` (broadcasting)."""
+    a, b = xywh_to_xyxy(a), xywh_to_xyxy(b)
+    w = np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0])
+    h = np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1])
+    return np.clip(w, 0, None) * np.clip(h, 0, None)
+
+
+def iou(a, b) -> np.ndarray:
+    """Intersection over union (broadcasting); 0 where the union is empty."""
+    inter = intersection(a, b)
+    union = box_area(a) + box_area(b) - inter
+    return np.divide(inter, union, out=np.zeros_like(inter, dtype=float), where=union > 0)
+
+
+def iou_matrix(a, b) -> np.ndarray:
+    """``(len(a), len(b))`` IoU matrix of two box stacks."""
+    a = np.asarray(a, dtype=float).reshape(-1, 4)
+    b = np.asarray(b, dtype=float).reshape(-1, 4)
+    return iou(a[:, None, :], b[None, :, :])
+
+
+def overlap_ratio(a, b) -> np.ndarray:
+    """Fraction of box ``a`` covered by box ``b``: ``|a ∩ b| / |a|``."""
+    inter = intersection(a, b)
+    area = box_area(a)
+    return np.divide(inter, area, out=np.zeros_like(inter, dtype=float), where=area > 0)
+
+
+def union_box(boxes) -> np.ndarray:
+    """Smallest box spanning all ``boxes`` (a group node's extent, Eq. 2.12-2.13)."""
+    xyxy = xywh_to_xyxy(np.asarray(boxes, dtype=float).reshape(-1, 4))
+    return xyxy_to_xywh(np.concatenate([xyxy[:, :2].min(0), xyxy[:, 2:].max(0)]))
+
+
+def clip_box(b, width: float, height: float) -> np.ndarray:
+    """Clip boxes to the image ``[0, width] x [0, height]``."""
+    xyxy = xywh_to_xyxy(b)
+    xyxy[..., [0, 2]] = np.clip(xyxy[..., [0, 2]], 0, width)
+    xyxy[..., [1, 3]] = np.clip(xyxy[..., [1, 3]], 0, height)
+    return xyxy_to_xywh(xyxy)

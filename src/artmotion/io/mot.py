@@ -1,0 +1,72 @@
+"""MOTChallenge text files: ``frame,id,x,y,w,h,conf,X,Y,Z`` (1-based frames, top-left box, pixels)."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from artmotion.errors import InputError
+from artmotion.io.atomic import atomic_write
+
+MOT_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "X", "Y", "Z")
+
+
+def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_empty: bool = True) -> np.ndarray:
+    """Read a MOTChallenge file into an ``(N, 10)`` float array.
+
+    Rows may have 6 to 10 comma- (or whitespace-) separated numbers; missing trailing columns
+    are filled with ``conf=1`` and ``X=Y=Z=-1``. Every problem is reported as an
+    :class:`InputError` naming the file and line: non-numeric or NaN values, a frame below 1
+    or not an integer, non-positive width or height, frames out of order (``require_sorted``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such file" if not path.exists() else "not a file", path=path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read: {exc}", path=path) from exc
+    rows: list[list[float]] = []
+    last_frame = -math.inf
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.replace(",", " ").split()
+        if not 6 <= len(parts) <= 10:
+            raise InputError(f"expected 6 to 10 values, found {len(parts)}", path=path, line=lineno)
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            raise InputError(f"non-numeric value in {line!r}", path=path, line=lineno) from None
+        if not all(math.isfinite(v) for v in values):
+            raise InputError("NaN or infinite value", path=path, line=lineno)
+        frame, _tid, _x, _y, w, h = values[:6]
+        if frame < 1 or frame != int(frame):
+            raise InputError(f"frame must be a positive integer, got {parts[0]}", path=path, line=lineno)
+        if w <= 0 or h <= 0:
+            raise InputError(f"non-positive box size {w:g}x{h:g}", path=path, line=lineno)
+        if require_sorted and frame < last_frame:
+            raise InputError(f"frame {int(frame)} out of order (after frame {int(last_frame)})", path=path, line=lineno)
+        last_frame = max(last_frame, frame)
+        defaults = [1.0, -1.0, -1.0, -1.0]
+        rows.append(values + defaults[len(values) - 6 :])
+    if not rows and not allow_empty:
+        raise InputError("empty file: no boxes", path=path)
+    return np.asarray(rows, dtype=float).reshape(-1, 10)
+
+
+def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
+    """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id."""
+    rows = np.asarray(rows, dtype=float).reshape(-1, np.shape(rows)[-1] if np.size(rows) else 10)
+    if rows.size:
+        rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
+    with atomic_write(path) as fh:
+        for r in rows:
+            conf = r[6] if r.shape[0] > 6 else 1.0
+            fh.write(
+                f"{int(r[0])},{int(r[1])},{r[2]:.2f},{r[3]:.2f},{r[4]:.2f},{r[5]:.2f},{conf:.4g},-1,-1,-1\n"
+            )

@@ -9,13 +9,18 @@ DEMO_OUT ?= out/demo
 
 .PHONY: install system-deps demo test bench clean
 
-# Debian packages: espeak-ng speaks the grounding dataset's words.
+# Debian packages: espeak-ng speaks the grounding dataset's words; chromium renders the HTML
+# report in the tests. Installed with apt-get when missing (CI runs as root).
+DEBS := espeak-ng:espeak-ng chromium:chromium
 system-deps:
-	@command -v espeak-ng >/dev/null 2>&1 || { \
+	@missing=""; for pair in $(DEBS); do cmd=$${pair%%:*}; pkg=$${pair##*:}; \
+	  command -v $$cmd >/dev/null 2>&1 || missing="$$missing $$pkg"; done; \
+	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq espeak-ng >/dev/null) \
-	      || echo "warning: could not install espeak-ng (grounding dataset will say so)"; \
-	  else echo "warning: espeak-ng missing and apt-get unavailable"; fi; }
+	    echo "apt-get install$$missing"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
+	      || echo "warning: could not install$$missing"; \
+	  else echo "warning: missing Debian packages:$$missing (install them with apt-get)"; fi; fi
 
 $(VENV)/.stamp-install: pyproject.toml
 	$(PYTHON) -m venv $(VENV)

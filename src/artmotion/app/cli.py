@@ -1,9 +1,179 @@
-"""CLI commands of :mod:`artmotion.app` (registered on the root app by :func:`register`)."""
+"""CLI of the application layer: ``run``, ``index add``, ``index list``, ``search``, ``batch``."""
 
 from __future__ import annotations
 
+import json
+import os
+from pathlib import Path
+from typing import Optional
+
 import typer
+
+from artmotion.errors import InputError
+
+DEFAULT_DB = "artmotion-index.sqlite"
+
+
+def _db_option():
+    return typer.Option(
+        None, "--db", help=f"SQLite index file [default: $ARTMOTION_INDEX or ./{DEFAULT_DB}]", show_default=False
+    )
+
+
+def _db_path(db: Optional[Path]) -> Path:
+    return Path(db) if db is not None else Path(os.environ.get("ARTMOTION_INDEX", DEFAULT_DB))
+
+
+def _run_dirs(path: Path) -> list[Path]:
+    """A run folder itself, or every run folder directly inside ``path`` (e.g. a batch's output)."""
+    from artmotion.app.pipeline import MANIFEST
+
+    if (path / MANIFEST).is_file():
+        return [path]
+    if path.is_dir():
+        runs = sorted(p for p in path.iterdir() if (p / MANIFEST).is_file())
+        if runs:
+            return runs
+    raise InputError(f"no finished run here (a folder with {MANIFEST}, or folders of them)", path=path)
+
+
+def run_cmd(
+    source: Path = typer.Argument(..., help="MOTChallenge sequence folder, video file or image folder."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Run folder [default: runs/NAME]."),
+    det: Optional[Path] = typer.Option(None, "--det", help="Detections (MOTChallenge text) instead of the built-in detector."),
+    object_class: str = typer.Option("person", "--class", help="Object class named in sentences."),
+    video: bool = typer.Option(True, "--video/--no-video", help="Also write annotated.mp4."),
+    index: Optional[Path] = typer.Option(None, "--index", help="Add the run to this SQLite event index."),
+):
+    """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
+    from artmotion.app.index import EventIndex
+    from artmotion.app.pipeline import run_pipeline
+
+    res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video)
+    n_tracks = len(set(res.tracks[:, 1].astype(int).tolist())) if len(res.tracks) else 0
+    typer.echo(f"{res.name}: {n_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
+               f" in {res.seconds:.1f} s")
+    for s in res.sentences[:10]:
+        typer.echo(f"  {s['sentence']}")
+    if len(res.sentences) > 10:
+        typer.echo(f"  … {len(res.sentences) - 10} more in {res.out_dir / 'sentences.txt'}")
+    if res.metrics:
+        m = res.metrics
+        typer.echo(f"metrics: MOTA {m['MOTA']:.3f}  IDF1 {m['IDF1']:.3f}  IDS {int(m['IDS'])}"
+                   f"  FP {int(m['FP'])}  FN {int(m['FN'])}")
+    typer.echo(f"report: {res.report}")
+    if index is not None:
+        with EventIndex(index) as idx:
+            idx.add_run(res.out_dir)
+        typer.echo(f"indexed in {index}")
+
+
+index_app = typer.Typer(help="The SQLite event index of many videos.", no_args_is_help=True)
+
+
+@index_app.command("add")
+def index_add(
+    path: Path = typer.Argument(..., help="A run folder (from `artmotion run`) or a folder of run folders."),
+    db: Optional[Path] = _db_option(),
+):
+    """Add runs to the event index (a video already there is replaced)."""
+    from artmotion.app.index import EventIndex
+
+    db_path = _db_path(db)
+    with EventIndex(db_path) as idx:
+        for run in _run_dirs(path):
+            name = idx.add_run(run)
+            typer.echo(f"added {name} ({run})")
+        typer.echo(f"{db_path}: {len(idx.videos())} videos")
+
+
+@index_app.command("list")
+def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(False, "--json")):
+    """List the indexed videos with their counts of tracks, events and sentences."""
+    from artmotion.app.index import EventIndex
+
+    db_path = _db_path(db)
+    if not db_path.is_file():
+        raise InputError("no such index (add runs with `artmotion index add`)", path=db_path)
+    with EventIndex(db_path) as idx:
+        videos = idx.videos()
+    if as_json:
+        typer.echo(json.dumps(videos, indent=1))
+        return
+    for v in videos:
+        typer.echo(f"{v['name']}: {v['frames']} frames, {v['tracks']} tracks, {v['events']} events, {v['sentences']} sentences")
+
+
+def search_cmd(
+    query: str = typer.Argument(..., help='What to find, e.g. "person exits left" or "person 3 merges".'),
+    video: Optional[str] = typer.Option(None, "--video", help="Only this video."),
+    limit: int = typer.Option(20, "--limit", min=1),
+    as_json: bool = typer.Option(False, "--json", help="Print the hits as JSON."),
+    db: Optional[Path] = _db_option(),
+):
+    """Find the moments that match a query, best first."""
+    from artmotion.app.index import EventIndex
+
+    db_path = _db_path(db)
+    if not db_path.is_file():
+        raise InputError("no such index (add runs with `artmotion index add`)", path=db_path)
+    with EventIndex(db_path) as idx:
+        hits = idx.search(query, video=video, limit=limit)
+    if as_json:
+        typer.echo(json.dumps([h.as_dict() for h in hits], indent=1))
+        return
+    if not hits:
+        typer.echo("no match")
+        raise typer.Exit(1)
+    for h in hits:
+        typer.echo(f"{h.score:5.2f}  {h.video}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}")
+
+
+def batch_cmd(
+    folder: Path = typer.Argument(..., help="Folder of sequences (MOTChallenge folders, videos, image folders)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Where run folders go [default: FOLDER/artmotion-runs]."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Local Dask workers (processes)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
+    force: bool = typer.Option(False, "--force", help="Re-run items that already finished."),
+    index: Optional[Path] = typer.Option(None, "--index", help="Add every finished run to this SQLite index."),
+):
+    """Run the pipeline on every item of FOLDER on Dask; failures are isolated and listed."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from artmotion.app.batch import run_batch
+    from artmotion.app.index import EventIndex
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  transient=True) as progress:
+        task = progress.add_task("batch", total=None)
+
+        def on_progress(outcome, done, total):
+            progress.update(task, completed=done, total=total,
+                            description=f"{Path(outcome.item).name}: {outcome.status}")
+
+        report = run_batch(folder, out, workers=workers, scheduler=scheduler, force=force, on_progress=on_progress)
+    done, skipped, failed = (report.by_status(s) for s in ("done", "skipped", "failed"))
+    for o in done:
+        typer.echo(f"done     {Path(o.item).name}: {o.tracks} tracks, {o.sentences} sentences, {o.seconds:.1f} s")
+    for o in skipped:
+        typer.echo(f"skipped  {Path(o.item).name}: already finished")
+    if index is not None:
+        with EventIndex(index) as idx:
+            for o in done + skipped:
+                idx.add_run(o.out_dir)
+        typer.echo(f"indexed {len(done) + len(skipped)} runs in {index}")
+    typer.echo(f"{len(done)} done, {len(skipped)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
+               f" on {report.workers} worker(s)")
+    if failed:
+        typer.echo("failed:", err=True)
+        for o in failed:
+            typer.echo(f"  {Path(o.item).name}: {o.message}", err=True)
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:
-    """Add this capability's commands to the root artmotion app."""
+    """Add the application's commands to the root ``artmotion`` app."""
+    app.command("run")(run_cmd)
+    app.add_typer(index_app, name="index")
+    app.command("search")(search_cmd)
+    app.command("batch")(batch_cmd)

@@ -1,0 +1,261 @@
+"""A searchable event index of many videos in SQLite (embedded, no server) — thesis 6.2.1.
+
+Every run folder written by :func:`artmotion.app.pipeline.run_pipeline` (``run.json`` manifest,
+``results.txt``, ``events.jsonl``) is added as one video: its tracks, events and sentences with
+frame ranges and track ids. :meth:`EventIndex.search` answers queries such as
+``"person exits left"``: the query is parsed into subject / track id / verb / direction and
+matched on the structured columns, best first; when nothing structured matches, SQLite's FTS5
+full-text search over the sentences (bm25 ranking) is the fallback.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import sqlite3
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from artmotion.errors import InputError
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS videos (
+    id INTEGER PRIMARY KEY,
+    name TEXT NOT NULL UNIQUE,
+    source TEXT, run_dir TEXT, frames INTEGER, fps REAL, width INTEGER, height INTEGER,
+    added TEXT DEFAULT CURRENT_TIMESTAMP
+);
+CREATE TABLE IF NOT EXISTS tracks (
+    video_id INTEGER NOT NULL REFERENCES videos(id) ON DELETE CASCADE,
+    track_id INTEGER NOT NULL, first_frame INTEGER, last_frame INTEGER, boxes INTEGER,
+    PRIMARY KEY (video_id, track_id)
+);
+CREATE TABLE IF NOT EXISTS events (
+    id INTEGER PRIMARY KEY,
+    video_id INTEGER NOT NULL REFERENCES videos(id) ON DELETE CASCADE,
+    type TEXT NOT NULL, frame INTEGER NOT NULL, tracks TEXT NOT NULL, side TEXT
+);
+CREATE TABLE IF NOT EXISTS sentences (
+    id INTEGER PRIMARY KEY,
+    video_id INTEGER NOT NULL REFERENCES videos(id) ON DELETE CASCADE,
+    sentence TEXT NOT NULL, subject TEXT, verb TEXT, adjective TEXT,
+    tracks TEXT NOT NULL, frame_start INTEGER, frame_end INTEGER
+);
+CREATE INDEX IF NOT EXISTS sentences_verb ON sentences(verb, adjective);
+CREATE VIRTUAL TABLE IF NOT EXISTS sentences_fts USING fts5(sentence, sid UNINDEXED);
+"""
+
+# Query words → the grammar's verbs (artmotion.language.grammar), in order of priority: "walk
+# together" is an interaction before it is a motion.
+VERBS = {
+    "interacts": ("interact", "interacts", "interacting", "together", "with", "accompanies"),
+    "merges": ("merge", "merges", "merged", "merging", "meet", "meets", "join", "joins", "occludes"),
+    "splits": ("split", "splits", "separate", "separates", "parted", "part"),
+    "enters": ("enter", "enters", "entered", "entering", "entry", "arrive", "arrives", "appear", "appears", "comes"),
+    "exits": ("exit", "exits", "exited", "exiting", "leave", "leaves", "leaving", "vanish", "vanishes", "disappears"),
+    "opens": ("open", "opens", "opened", "opening"),
+    "closes": ("close", "closes", "closed", "closing"),
+    "stays": ("stay", "stays", "stands", "waits", "still"),
+    "moves": ("move", "moves", "moved", "moving", "walk", "walks", "walking", "runs", "run", "goes"),
+}
+DIRECTIONS = {
+    "left": ("left", "leftwards", "west"),
+    "right": ("right", "rightwards", "east"),
+    "upwards": ("up", "upwards", "upward", "top", "north", "away"),
+    "downwards": ("down", "downwards", "downward", "bottom", "south", "towards"),
+}
+SUBJECTS = ("person", "tool", "people", "persons", "tools", "grasper", "object")
+
+
+@dataclass
+class Query:
+    """A parsed search query; empty fields match anything."""
+
+    text: str
+    subject: str | None = None
+    track: int | None = None
+    verb: str | None = None
+    direction: str | None = None
+
+    @property
+    def structured(self) -> bool:
+        return any(v is not None for v in (self.subject, self.track, self.verb, self.direction))
+
+
+def parse_query(text: str) -> Query:
+    """Parse ``"person 3 exits left"`` into subject, track id, verb and direction."""
+    q = Query(text=text)
+    words = re.findall(r"[a-z]+|\d+", text.lower())
+    for word in words:
+        if word.isdigit():
+            q.track = int(word) if q.track is None else q.track
+        elif word in SUBJECTS:
+            q.subject = {"people": "person", "persons": "person", "tools": "tool", "grasper": "tool"}.get(word, word)
+        elif any(word in forms for forms in DIRECTIONS.values()):
+            q.direction = next(d for d, forms in DIRECTIONS.items() if word in forms)
+    q.verb = next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
+    return q
+
+
+@dataclass
+class Hit:
+    """One matching moment."""
+
+    video: str
+    sentence: str
+    frame_start: int
+    frame_end: int
+    tracks: list[int]
+    score: float
+    verb: str | None = None
+    adjective: str | None = None
+    subject: str | None = None
+    run_dir: str | None = None
+    match: str = "structured"
+    extra: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("extra")
+        return d
+
+
+class EventIndex:
+    """The SQLite event index: ``EventIndex(path).add_run(run_dir)``, ``.search(query)``."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.conn = sqlite3.connect(self.path)
+            self.conn.execute("PRAGMA foreign_keys = ON")
+            self.conn.executescript(SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise InputError(f"not an artmotion index ({exc})", path=self.path) from None
+        except OSError as exc:
+            raise InputError(f"cannot open index: {exc.strerror}", path=self.path) from None
+
+    def close(self) -> None:
+        self.conn.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # ----------------------------------------------------------------- adding
+    def add_run(self, run_dir: str | os.PathLike) -> str:
+        """Add (or replace) the video of one run folder; returns the video name."""
+        from artmotion.app.pipeline import load_run
+
+        run = load_run(run_dir)
+        name = run["name"]
+        with self.conn:  # one transaction: a run is indexed whole or not at all
+            self.conn.execute(
+                "DELETE FROM sentences_fts WHERE sid IN"
+                " (SELECT s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE v.name = ?)",
+                (name,),
+            )
+            self.conn.execute("DELETE FROM videos WHERE name = ?", (name,))
+            info = run.get("sequence", {})
+            cur = self.conn.execute(
+                "INSERT INTO videos(name, source, run_dir, frames, fps, width, height) VALUES (?,?,?,?,?,?,?)",
+                (name, run.get("source"), str(Path(run_dir).resolve()), info.get("length"), info.get("fps"),
+                 info.get("width"), info.get("height")),
+            )
+            vid = cur.lastrowid
+            self.conn.executemany(
+                "INSERT INTO tracks VALUES (?,?,?,?,?)",
+                [(vid, t["id"], t["first_frame"], t["last_frame"], t["boxes"]) for t in run["track_summary"]],
+            )
+            self.conn.executemany(
+                "INSERT INTO events(video_id, type, frame, tracks, side) VALUES (?,?,?,?,?)",
+                [(vid, e["type"], e["frame"], json.dumps(e["tracks"]), e.get("side")) for e in run["events"]],
+            )
+            for s in run["sentences"]:
+                cur = self.conn.execute(
+                    "INSERT INTO sentences(video_id, sentence, subject, verb, adjective, tracks, frame_start, frame_end)"
+                    " VALUES (?,?,?,?,?,?,?,?)",
+                    (vid, s["sentence"], s.get("subject"), s.get("verb"), s.get("adjective"),
+                     json.dumps(s.get("tracks", [])), s.get("frame_start"), s.get("frame_end")),
+                )
+                self.conn.execute("INSERT INTO sentences_fts(sentence, sid) VALUES (?, ?)", (s["sentence"], cur.lastrowid))
+        return name
+
+    def videos(self) -> list[dict]:
+        rows = self.conn.execute(
+            "SELECT v.name, v.frames, v.fps, (SELECT count(*) FROM tracks t WHERE t.video_id = v.id),"
+            " (SELECT count(*) FROM events e WHERE e.video_id = v.id),"
+            " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name"
+        ).fetchall()
+        return [dict(zip(("name", "frames", "fps", "tracks", "events", "sentences"), r)) for r in rows]
+
+    # -------------------------------------------------------------- searching
+    def search(self, text: str, video: str | None = None, limit: int = 20) -> list[Hit]:
+        """Matching moments, best first: structured match, else full-text fallback."""
+        if not text.strip():
+            raise InputError("empty query")
+        q = parse_query(text)
+        hits = self._structured(q, video) if q.structured else []
+        if not hits:
+            hits = self._fulltext(text, video)
+        hits.sort(key=lambda h: (-h.score, h.video, h.frame_start))
+        return hits[:limit]
+
+    def _rows(self, video: str | None, where: str = "", params: tuple = ()):
+        sql = (
+            "SELECT v.name, v.run_dir, s.sentence, s.subject, s.verb, s.adjective, s.tracks, s.frame_start,"
+            " s.frame_end, s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE 1=1"
+        )
+        if video is not None:
+            sql += " AND v.name = ?"
+            params = (video,) + params
+        return self.conn.execute(sql + where, params).fetchall()
+
+    def _structured(self, q: Query, video: str | None) -> list[Hit]:
+        """Every asked-for verb and track id must hold; direction and subject add to the score."""
+        hits = []
+        for name, run_dir, sentence, subject, verb, adjective, tracks, f0, f1, _ in self._rows(video):
+            track_ids = json.loads(tracks)
+            canon = _canon_verb(verb)
+            if (q.verb is not None and canon != q.verb) or (q.track is not None and q.track not in track_ids):
+                continue
+            direction_ok = q.direction is not None and q.direction in (adjective or "").split()
+            if q.verb is None and q.direction is not None and not direction_ok:
+                continue
+            subject_ok = q.subject is not None and q.subject == subject
+            if q.subject is not None and q.verb is None and q.direction is None and q.track is None and not subject_ok:
+                continue
+            score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok
+            best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
+                + 1.0 * (q.subject is not None)
+            hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir))
+        return hits
+
+    def _fulltext(self, text: str, video: str | None) -> list[Hit]:
+        terms = re.findall(r"\w+", text.lower())
+        if not terms:
+            return []
+        match = " OR ".join(f'"{t}"' for t in terms)
+        rows = self.conn.execute(
+            "SELECT sid, bm25(sentences_fts) FROM sentences_fts WHERE sentences_fts MATCH ?", (match,)
+        ).fetchall()
+        rank = {sid: -score for sid, score in rows}
+        if not rank:
+            return []
+        hits = []
+        for name, run_dir, sentence, subject, verb, adjective, tracks, f0, f1, sid in self._rows(video):
+            if sid in rank:
+                hits.append(Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), _canon_verb(verb),
+                                adjective, subject, run_dir, match="fulltext"))
+        return hits
+
+
+def _canon_verb(verb: str | None) -> str | None:
+    """The query vocabulary's verb for one of the grammar's (``"walk together"`` → ``interacts``)."""
+    if verb is None:
+        return None
+    words = verb.lower().split()
+    return next((v for v, forms in VERBS.items() if v in words or any(w in forms for w in words)), verb.lower())

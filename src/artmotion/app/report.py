@@ -1,0 +1,156 @@
+"""A self-contained HTML report of one run: key frames, trajectories, timeline, sentences, metrics.
+
+Images are embedded as data URIs, so the single ``report.html`` opens in any browser with no
+server and can be mailed or archived as one file.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+from artmotion.io import atomic_write
+
+MAX_KEY_FRAMES = 8
+
+
+def track_color(track_id: int) -> tuple[int, int, int]:
+    """A stable, well-separated BGR colour per track id (golden-ratio hue steps)."""
+    hue = int((track_id * 0.618033988749895 % 1.0) * 179)
+    hsv = np.uint8([[[hue, 200, 255]]])
+    return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
+
+
+def draw_boxes(image: np.ndarray, rows: np.ndarray, thickness: int = 2) -> np.ndarray:
+    """Draw MOT rows (``frame,id,x,y,w,h,...``) of one frame with their ids onto a copy of ``image``."""
+    out = image.copy()
+    for r in rows:
+        tid = int(r[1])
+        x, y, w, h = (int(round(v)) for v in r[2:6])
+        color = track_color(tid)
+        cv2.rectangle(out, (x, y), (x + w, y + h), color, thickness)
+        cv2.putText(out, str(tid), (x + 2, max(y - 4, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, color, 2, cv2.LINE_AA)
+    return out
+
+
+def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
+    """Every track's foot point (bottom centre of its box) as a polyline over the scene."""
+    out = background.copy()
+    for tid in np.unique(tracks[:, 1]).astype(int):
+        rows = tracks[tracks[:, 1] == tid]
+        rows = rows[np.argsort(rows[:, 0])]
+        pts = np.stack([rows[:, 2] + rows[:, 4] / 2, rows[:, 3] + rows[:, 5]], axis=1).round().astype(np.int32)
+        color = track_color(tid)
+        cv2.polylines(out, [pts.reshape(-1, 1, 2)], False, color, 2, cv2.LINE_AA)
+        cv2.circle(out, tuple(int(v) for v in pts[0]), 4, color, -1)
+        cv2.putText(out, str(tid), tuple(int(v) for v in pts[-1]), cv2.FONT_HERSHEY_SIMPLEX, 0.6, color, 2, cv2.LINE_AA)
+    return out
+
+
+def _data_uri(image: np.ndarray, max_width: int = 960) -> str:
+    if image.shape[1] > max_width:
+        scale = max_width / image.shape[1]
+        image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 85])
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def key_frames(length: int, events: list[dict], tracks: np.ndarray, k: int = MAX_KEY_FRAMES) -> list[int]:
+    """Frames worth showing: the events' frames first, then evenly spaced frames with tracks."""
+    chosen: list[int] = []
+    for ev in sorted(events, key=lambda e: e["frame"]):
+        f = int(ev["frame"])
+        if all(abs(f - c) > max(2, length // (4 * k)) for c in chosen):
+            chosen.append(f)
+    if len(chosen) > k:
+        chosen = [chosen[i] for i in np.linspace(0, len(chosen) - 1, k).round().astype(int)]
+    busy = np.unique(tracks[:, 0]).astype(int) if len(tracks) else np.arange(1, length + 1)
+    for f in busy[np.linspace(0, len(busy) - 1, min(k, len(busy))).round().astype(int)] if len(busy) else []:
+        if len(chosen) >= k:
+            break
+        if all(abs(int(f) - c) > 2 for c in chosen):
+            chosen.append(int(f))
+    return sorted(chosen)
+
+
+def _timeline_svg(manifest: dict, length: int) -> str:
+    """Track lifespans as bars and events as marks, frame on x; hover shows the sentence."""
+    tracks = manifest["track_summary"]
+    row_h, left, width = 18, 70, 900
+    height = row_h * (len(tracks) + 1) + 30
+    xs = lambda f: left + (width - left - 10) * (f - 1) / max(length - 1, 1)  # noqa: E731
+    rows = {t["id"]: i for i, t in enumerate(tracks)}
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" class="timeline">']
+    for t in tracks:
+        y = 10 + rows[t["id"]] * row_h
+        b, g, r = track_color(t["id"])
+        parts.append(f'<text x="4" y="{y + 12}" font-size="12">track {t["id"]}</text>')
+        parts.append(
+            f'<rect x="{xs(t["first_frame"]):.1f}" y="{y + 3}" width="{max(xs(t["last_frame"]) - xs(t["first_frame"]), 2):.1f}"'
+            f' height="{row_h - 6}" fill="rgb({r},{g},{b})" opacity="0.7"><title>track {t["id"]}: frames'
+            f' {t["first_frame"]}–{t["last_frame"]}</title></rect>'
+        )
+    glyph = {"enter": "▶", "exit": "■", "merge": "◆", "split": "◇"}
+    for ev in manifest["events"]:
+        for tid in ev["tracks"]:
+            if tid in rows:
+                y = 10 + rows[tid] * row_h
+                label = html.escape(f'{ev["type"]} at frame {ev["frame"]}' + (f' ({ev["side"]})' if ev.get("side") else ""))
+                parts.append(f'<text x="{xs(ev["frame"]) - 5:.1f}" y="{y + 13}" font-size="12" class="ev ev-{html.escape(ev["type"])}">'
+                             f'{glyph.get(ev["type"], "●")}<title>{label}</title></text>')
+    y = height - 8
+    for f in np.linspace(1, length, 6).round().astype(int):
+        parts.append(f'<text x="{xs(f) - 8:.1f}" y="{y}" font-size="11">{f}</text>')
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dict) -> Path:
+    """Render ``report.html`` for one run (``seq`` from :func:`artmotion.tracking.open_sequence`)."""
+    length = int(seq.length)
+    keys = set(key_frames(length, manifest["events"], tracks))
+    samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())
+    key_images, background_samples = {}, []
+    for fno, frame in seq.frames():
+        if fno in keys:
+            key_images[fno] = draw_boxes(frame, tracks[tracks[:, 0] == fno])
+        if fno in samples:
+            background_samples.append(cv2.resize(frame, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+    if background_samples:  # the median of frames spread over time removes moving people
+        bg = np.median(np.stack(background_samples), axis=0).astype(np.uint8)
+        bg = cv2.resize(bg, (int(seq.width), int(seq.height)), interpolation=cv2.INTER_LINEAR)
+    else:
+        bg = np.zeros((int(seq.height), int(seq.width), 3), np.uint8)
+    events_by_frame: dict[int, list[str]] = {}
+    for s in manifest["sentences"]:
+        events_by_frame.setdefault(int(s.get("frame_start") or 0), []).append(s["sentence"])
+    fps = float(seq.fps or 0) or None
+    sentences = [
+        dict(s, time=(f'{(s["frame_start"] - 1) / fps:.1f}–{(s["frame_end"] - 1) / fps:.1f} s'
+                      if fps and s.get("frame_start") and s.get("frame_end") else ""))
+        for s in sorted(manifest["sentences"], key=lambda s: (s.get("frame_start") or 0, s["sentence"]))
+    ]
+    env = Environment(loader=FileSystemLoader(Path(__file__).parent / "templates"),
+                      autoescape=select_autoescape(["html", "j2"]))
+    page = env.get_template("report.html.j2").render(
+        name=manifest["name"],
+        manifest=manifest,
+        length=length,
+        n_tracks=len(manifest["track_summary"]),
+        trajectories=_data_uri(draw_trajectories(bg, tracks)),
+        key_frames=[{"frame": f, "uri": _data_uri(img),
+                     "sentences": [s for f0, ss in events_by_frame.items() if abs(f0 - f) <= 2 for s in ss]}
+                    for f, img in sorted(key_images.items())],
+        timeline=_timeline_svg(manifest, length),
+        sentences=sentences,
+        metrics=manifest.get("metrics"),
+    )
+    with atomic_write(path) as fh:
+        fh.write(page)
+    return Path(path)

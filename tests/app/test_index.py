@@ -1,0 +1,108 @@
+import json
+
+import pytest
+
+from artmotion.app.index import EventIndex, parse_query
+from artmotion.errors import InputError
+
+
+def make_run(root, name, sentences, events=()):
+    d = root / name
+    d.mkdir(parents=True)
+    manifest = {
+        "name": name,
+        "source": f"/videos/{name}",
+        "sequence": {"length": 100, "fps": 25.0, "width": 640, "height": 480},
+        "track_summary": [{"id": 1, "first_frame": 1, "last_frame": 50, "boxes": 50},
+                          {"id": 2, "first_frame": 10, "last_frame": 100, "boxes": 91}],
+        "events": list(events),
+        "sentences": sentences,
+    }
+    (d / "run.json").write_text(json.dumps(manifest))
+    return d
+
+
+def S(text, verb, adj, tracks, f0, f1, subject="person"):
+    return {"sentence": text, "subject": subject, "verb": verb, "adjective": adj, "tracks": tracks,
+            "frame_start": f0, "frame_end": f1}
+
+
+@pytest.fixture
+def index(tmp_path):
+    a = make_run(tmp_path, "campus", [
+        S("Person 1 enters from the left (frames 1-1).", "enters", "left", [1], 1, 1),
+        S("Person 1 exits to the right (frames 50-50).", "exits", "right", [1], 50, 50),
+        S("Person 2 exits to the left (frames 100-100).", "exits", "left", [2], 100, 100),
+        S("Person 1 and person 2 merge (frames 30-30).", "merge", None, [1, 2], 30, 30),
+    ], events=[{"type": "enter", "frame": 1, "tracks": [1], "side": "left"}])
+    b = make_run(tmp_path, "square", [
+        S("Person 1 moves left and downwards (frames 5-40).", "moves", "left and downwards", [1], 5, 40),
+        S("Person 1 and person 2 walk together to the right (frames 10-60).", "walk together", "right", [1, 2], 10, 60),
+        S("Person 2 vanishes inside (frames 70-70).", "vanishes", "inside", [2], 70, 70),
+    ])
+    idx = EventIndex(tmp_path / "db.sqlite")
+    idx.add_run(a)
+    idx.add_run(b)
+    yield idx
+    idx.close()
+
+
+def test_parse_query():
+    q = parse_query("Person 3 exits left")
+    assert (q.subject, q.track, q.verb, q.direction) == ("person", 3, "exits", "left")
+    assert parse_query("people walking together").verb == "interacts"
+
+
+def test_structured_search_best_first(index):
+    hits = index.search("person exits left")
+    assert [h.sentence for h in hits][:1] == ["Person 2 exits to the left (frames 100-100)."]
+    assert all(h.verb == "exits" for h in hits)  # vanishes counts as an exit too
+    assert hits[0].score > hits[-1].score
+    assert {h.video for h in hits} == {"campus", "square"}
+
+
+def test_track_and_video_filters(index):
+    hits = index.search("person 2 merges")
+    assert len(hits) == 1 and hits[0].tracks == [1, 2] and hits[0].frame_start == 30
+    assert index.search("exits", video="square")[0].sentence.startswith("Person 2 vanishes")
+    assert index.search("walk together")[0].video == "square"
+    assert index.search("moves left")[0].adjective == "left and downwards"
+
+
+def test_fulltext_fallback_and_empty(index):
+    hits = index.search("frames inside")
+    assert hits and hits[0].match == "fulltext" and "inside" in hits[0].sentence
+    with pytest.raises(InputError):
+        index.search("   ")
+
+
+def test_readding_replaces_video(index, tmp_path):
+    assert len(index.videos()) == 2
+    index.add_run(tmp_path / "campus")
+    vids = {v["name"]: v for v in index.videos()}
+    assert len(vids) == 2 and vids["campus"]["sentences"] == 4 and vids["campus"]["events"] == 1
+    # full-text rows of the replaced video are gone too: no duplicate hits
+    assert len(index.search("merge")) == 1
+
+
+def test_bad_run_and_bad_db(tmp_path, run_cli):
+    (tmp_path / "empty").mkdir()
+    code, _, err = run_cli("index", "add", tmp_path / "empty", "--db", tmp_path / "x.sqlite")
+    assert code == 2 and "no finished run" in err and err.count("\n") == 1
+    bad = tmp_path / "bad.sqlite"
+    bad.write_bytes(b"this is not sqlite at all" * 100)
+    code, _, err = run_cli("search", "person", "--db", bad)
+    assert code == 2 and "bad.sqlite" in err
+    code, _, err = run_cli("search", "person", "--db", tmp_path / "missing.sqlite")
+    assert code == 2 and "no such index" in err
+
+
+def test_cli_add_and_search_json(index, tmp_path, run_cli):
+    db = tmp_path / "cli.sqlite"
+    code, out, _ = run_cli("index", "add", tmp_path, "--db", db)  # a folder of run folders
+    assert code == 0 and "2 videos" in out
+    code, out, _ = run_cli("search", "person enters from the left", "--db", db, "--json")
+    hits = json.loads(out)
+    assert code == 0 and hits[0]["video"] == "campus" and hits[0]["frame_start"] == 1
+    code, out, _ = run_cli("search", "zebra", "--db", db)
+    assert code == 1 and "no match" in out

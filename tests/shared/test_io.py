@@ -1,0 +1,78 @@
+import numpy as np
+import pytest
+
+from artmotion.errors import InputError
+from artmotion.io import atomic_write, read_events, read_mot, write_events, write_mot
+
+
+def write(tmp_path, text, name="det.txt"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_read_mot_pads_and_roundtrips(tmp_path):
+    p = write(tmp_path, "1,-1,10,20,30,40,0.9\n2,-1,11,21,30,40,0.8,-1,-1,-1\n\n")
+    rows = read_mot(p)
+    assert rows.shape == (2, 10)
+    assert rows[0, 6] == pytest.approx(0.9) and rows[0, 7] == -1
+    out = tmp_path / "res.txt"
+    write_mot(out, rows[::-1])
+    again = read_mot(out)
+    np.testing.assert_allclose(again[:, :7], rows[:, :7], atol=1e-2)
+
+
+@pytest.mark.parametrize(
+    "text,needle,line",
+    [
+        ("1,-1,10,20,30,40,0.9\n2,-1,abc,20,30,40,0.9\n", "non-numeric", 2),
+        ("1,-1,10,20,nan,40,0.9\n", "NaN", 1),
+        ("1,-1,10,20,0,40,0.9\n", "non-positive box size", 1),
+        ("1,-1,10,20\n", "expected 6 to 10 values", 1),
+        ("0,-1,10,20,5,5,1\n", "positive integer", 1),
+    ],
+)
+def test_read_mot_errors_name_file_and_line(tmp_path, text, needle, line):
+    p = write(tmp_path, text)
+    with pytest.raises(InputError) as exc:
+        read_mot(p)
+    msg = str(exc.value)
+    assert needle in msg and f"det.txt:{line}:" in msg and "\n" not in msg
+
+
+def test_read_mot_order_and_empty(tmp_path):
+    p = write(tmp_path, "2,-1,10,20,5,5,1\n1,-1,10,20,5,5,1\n")
+    assert read_mot(p).shape == (2, 10)
+    with pytest.raises(InputError, match="out of order"):
+        read_mot(p, require_sorted=True)
+    empty = write(tmp_path, "", "empty.txt")
+    assert read_mot(empty).shape == (0, 10)
+    with pytest.raises(InputError, match="empty"):
+        read_mot(empty, allow_empty=False)
+    with pytest.raises(InputError, match="no such file"):
+        read_mot(tmp_path / "missing.txt")
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.txt"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as fh:
+            fh.write("half")
+            raise RuntimeError("boom")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+
+
+def test_events_roundtrip_and_validation(tmp_path):
+    evs = [{"type": "enter", "frame": 3, "tracks": [1], "side": "left"},
+           {"type": "merge", "frame": 9, "tracks": [1, 2], "group": 100}]
+    p = tmp_path / "e.jsonl"
+    write_events(p, evs)
+    assert read_events(p) == evs
+    bad = write(tmp_path, '{"type": "enter", "frame": 3}\n', "bad.jsonl")
+    with pytest.raises(InputError, match="bad.jsonl:1:"):
+        read_events(bad)
+    bad2 = write(tmp_path, "not json\n", "bad2.jsonl")
+    with pytest.raises(InputError, match="not JSON"):
+        read_events(bad2)

@@ -1,9 +1,116 @@
-"""CLI commands of :mod:`artmotion.articulation` (registered on the root app by :func:`register`)."""
+"""CLI commands of :mod:`artmotion.articulation` (registered on the root app by :func:`register`).
+
+``artmotion articulation fit TRAJ`` and ``artmotion slam simulate``.
+"""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Optional
+
 import typer
+
+from artmotion.errors import InputError
+
+articulation_app = typer.Typer(help="Discover how things move: articulation models from trajectories.",
+                               no_args_is_help=True)
+slam_app = typer.Typer(help="EKF SLAM and Articulated EKF SLAM on a simulated world.", no_args_is_help=True)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return str(v)
+
+
+@articulation_app.command("fit")
+def fit(
+    traj: Path = typer.Argument(..., help="Trajectory: rows 'x y', 'x y z' or 'x y z qx qy qz qw' (see --time)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    threshold: float = typer.Option(0.75, "--threshold", help="Decide a model when its probability passes this (tau)."),
+    min_samples: int = typer.Option(7, "--min-samples", help="Samples before configurations are estimated."),
+    time: Optional[bool] = typer.Option(None, "--time/--no-time",
+                                        help="First column is time (default: header 't'/'time' or 4/8 columns)."),
+    order: int = typer.Option(2, "--order", help="Taylor order of the motion variables (2 = constant velocity)."),
+    noise_floor: float = typer.Option(0.005, "--noise-floor", help="Least observation noise std (data units; 5 mm)."),
+    max_radius: float = typer.Option(1.0, "--max-radius", help="Largest expected joint radius (data units)."),
+):
+    """Classify a trajectory online (static, prismatic, revolute; poses also planar, rigid)."""
+    from artmotion.articulation.trajectory import fit_trajectory
+
+    if not 0.0 < threshold < 1.0:
+        raise InputError("--threshold must lie in (0, 1)")
+    if min_samples < 3:
+        raise InputError("--min-samples must be at least 3")
+    if order < 1 or order > 6:
+        raise InputError("--order must be between 1 and 6")
+    if not traj.exists():
+        raise InputError("no such file", path=traj)
+    out = fit_trajectory(traj, time=time, threshold=threshold, min_samples=min_samples, order=order,
+                         noise_floor=noise_floor, max_radius=max_radius)
+    if as_json:
+        typer.echo(json.dumps(out))
+        return
+    n = out["samples"]
+    typer.echo(f"{traj}: {n} samples ({out['input']}{', time column' if out['time_column'] else ''})")
+    dec = out["decided_at"]
+    when = f"decided at sample {dec} ({100.0 * (dec + 1) / n:.0f}% of the track)" if dec is not None else "undecided"
+    typer.echo(f"model: {out['model']}  ({when})")
+    fd = out.get("first_decision")
+    if fd and fd["model"] != out["model"]:
+        typer.echo(f"  first passed the threshold: {fd['model']} at sample {fd['at']} (revised later)")
+    if out.get("probabilities"):
+        typer.echo("probabilities: " + ", ".join(f"{k} {v:.3f}" for k, v in out["probabilities"].items()))
+    for k, v in out.get("configuration", {}).items():
+        typer.echo(f"  {k}: {_fmt(v)}")
+    if out.get("prediction"):
+        typer.echo(f"next sample predicted at {_fmt(out['prediction'][0])}")
+
+
+@slam_app.command("simulate")
+def simulate(
+    landmarks: int = typer.Option(42, "--landmarks", help="Point landmarks in all."),
+    prismatic: int = typer.Option(1, "--prismatic", help="How many of them slide back and forth."),
+    revolute: int = typer.Option(1, "--revolute", help="How many of them turn on a circle."),
+    steps: int = typer.Option(600, "--steps", help="Time steps per run (0.1 s each)."),
+    runs: int = typer.Option(20, "--runs", help="Monte Carlo runs."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG of the last run (Fig. 4.6/4.7)."),
+):
+    """Compare Articulated EKF SLAM with EKF SLAM (Table 4.2)."""
+    from artmotion.articulation.slam import monte_carlo, plot_run
+
+    if landmarks < 1 or prismatic < 0 or revolute < 0 or prismatic + revolute > landmarks:
+        raise InputError("need --landmarks >= 1 and 0 <= --prismatic + --revolute <= --landmarks")
+    if steps < 2 or runs < 1:
+        raise InputError("need --steps >= 2 and --runs >= 1")
+    if plot is not None and plot.suffix.lower() != ".png":
+        raise InputError("--plot must name a .png file", path=plot)
+    res = monte_carlo(runs=runs, steps=steps, landmarks=landmarks, prismatic=prismatic, revolute=revolute,
+                      seed=seed, keep_last=plot is not None)
+    last = res.pop("_last", None)
+    if plot is not None and last is not None:
+        world, sim, results = last
+        plot_run(world, sim, results, plot, frames=(min(10, steps), min(100, steps), -1))
+    if as_json:
+        typer.echo(json.dumps(res))
+        return
+    typer.echo(f"{runs} runs x {steps} steps, {landmarks} landmarks ({prismatic} prismatic, {revolute} revolute)")
+    typer.echo(f"{'':22s}{'translation':>12s}{'rotation':>10s}{'abs. transl.':>14s}{'abs. rot.':>11s}")
+    for name, label in (("articulated", "Articulated EKF SLAM"), ("ekf", "EKF SLAM"), ("ekf_gated", "EKF SLAM + chi2 gate")):
+        r = res[name]
+        typer.echo(f"{label:22s}{r['translation_error']:12.3f}{r['rotation_error']:10.3f}"
+                   f"{r['absolute_translation_error']:14.3f}{r['absolute_rotation_error']:11.3f}")
+    typer.echo("errors of pose increments over all pose pairs (m, rad); absolute: mean pose error")
+    if plot is not None:
+        typer.echo(f"wrote {plot}")
 
 
 def register(app: typer.Typer) -> None:
     """Add this capability's commands to the root artmotion app."""
+    app.add_typer(articulation_app, name="articulation")
+    app.add_typer(slam_app, name="slam")

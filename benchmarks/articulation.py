@@ -1,0 +1,177 @@
+"""Speed of articulation estimation and SLAM (not a test; numbers go into docs/articulation.md).
+
+    .venv/bin/python benchmarks/articulation.py [--quick]
+    .venv/bin/python benchmarks/articulation.py --report   # regenerate docs/articulation*.png and numbers
+
+* online update: microseconds per observation per model (Algorithm 1's filter step alone, and
+  amortised over a whole track including the configuration re-fits);
+* SLAM: steps per second with 42 landmarks (articulated and plain), and how a step's cost grows
+  from 50 to 1000 landmarks (plain EKF SLAM with every landmark in the state and in view).
+"""
+
+from __future__ import annotations
+
+import os
+
+# single-threaded BLAS: on a shared 2-core machine threaded BLAS on ~100x100 matrices loses to contention
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from artmotion.articulation.online import OnlineEstimator
+from artmotion.articulation.slam import EKFSlam, make_world, run_slam, simulate
+
+
+def bench_online(n: int = 2000, seed: int = 0) -> dict:
+    rng = np.random.default_rng(seed)
+    th = np.linspace(0, 1.5, n)
+    X = np.column_stack([0.4 * np.cos(th), 0.4 * np.sin(th), np.zeros(n)]) + rng.normal(0, 0.002, (n, 3))
+    est = OnlineEstimator()
+    t0 = time.perf_counter()
+    for k in range(n):
+        est.update(X[k])
+    total = time.perf_counter() - t0
+    models = len(est.names)
+    # the filter step alone (predict + EKF update + likelihood), per model
+    out = {}
+    for f in est.filters:
+        z = X[-1]
+        reps = 20000
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            f.step(z, 1.0, 0.005, 0.00025)
+        out[f.model.name] = 1e6 * (time.perf_counter() - t0) / reps
+    return {"step_us_per_model": out, "amortised_us_per_observation_per_model": 1e6 * total / n / models,
+            "samples": n}
+
+
+def bench_slam(steps: int = 600, seed: int = 1) -> dict:
+    world = make_world(seed=seed)
+    sim = simulate(world, steps, seed=seed)
+    res = {}
+    for name, art in (("articulated", True), ("ekf", False)):
+        t0 = time.perf_counter()
+        run_slam(sim, art)
+        res[name + "_steps_per_s"] = steps / (time.perf_counter() - t0)
+    return res
+
+
+def bench_scaling(sizes=(50, 100, 200, 500, 1000), steps: int = 30) -> dict:
+    """Cost of one EKF SLAM step (predict + batch update) with ``L`` landmarks all in the state and
+    ``min(L, 20)`` observed per step."""
+    out = {}
+    rng = np.random.default_rng(0)
+    for L in sizes:
+        f = EKFSlam(np.zeros(3), 0.1, (0.05, 0.005, 0.005, 0.05), 0.1, math.radians(1), L)
+        lm = rng.uniform(-20, 20, (L, 2))
+        for i in range(L):
+            d = lm[i]
+            f._add_static(i, np.array([np.hypot(*d), math.atan2(d[1], d[0])]))
+        ids = np.arange(min(L, 20))
+        z = np.column_stack([np.hypot(lm[ids, 0], lm[ids, 1]), np.arctan2(lm[ids, 1], lm[ids, 0])])
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            f.predict((1.0, 0.0))
+            f.update(ids, z)
+        out[L] = 1e3 * (time.perf_counter() - t0) / steps
+    return out
+
+
+# ---------------------------------------------------------------- the figures and tables of the docs
+def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/sturm2010", runs_slam: int = 20) -> dict:
+    """Regenerate docs/articulation*.png and the numbers in docs/articulation.md."""
+    import glob
+    import os
+    from collections import defaultdict
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from artmotion.articulation.online import estimate_online
+    from artmotion.articulation.slam import monte_carlo, plot_run
+    from artmotion.articulation.temporal import compare_orders, configuration_monte_carlo, pendulum, plot_orders
+    from artmotion.io import atomic_path
+
+    rep = {}
+    # Table 4.1
+    rep["table_4_1"] = configuration_monte_carlo(runs=500, seed=0)
+    rep["table_4_1_accelerating"] = configuration_monte_carlo(runs=500, seed=0, alpha=0.01)
+    # Fig. 4.5
+    t, q, truth = pendulum(duration=10.0, dt=0.02, noise_std=0.01, seed=0)
+    orders = compare_orders(q, t, orders=(1, 2, 3), obs_var=1e-4, truth=truth, horizon=10)
+    plot_orders(t, q, truth, orders, os.path.join(out_dir, "articulation_orders.png"))
+    rep["orders"] = {n: {k: v for k, v in r.items() if not hasattr(v, "shape")} for n, r in orders.items()}
+    # Fig. 4.6-like: model probabilities over time, synthetic points and one real log of each kind
+    rng = np.random.default_rng(0)
+    s = np.linspace(0, 1, 150)
+    synth = {
+        "static": np.tile([0.4, -0.2, 0.9], (150, 1)) + rng.normal(0, 0.003, (150, 3)),
+        "prismatic": np.array([0.1, 0.2, 0.3]) + 0.5 * s[:, None] * np.array([0.6, 0.8, 0.0]) + rng.normal(0, 0.003, (150, 3)),
+        "revolute": np.column_stack([0.45 * np.cos(1.5 * s), 0.45 * np.sin(1.5 * s), 0 * s]) + rng.normal(0, 0.003, (150, 3)),
+    }
+    for name in ("drawer/001", "left_door/001", "dishwasher/001"):
+        p = os.path.join(sturm, name + ".log")
+        if os.path.exists(p):
+            synth["sturm " + name] = np.loadtxt(p)
+    fig, axes = plt.subplots(2, 3, figsize=(13, 6))
+    for ax, (name, X) in zip(axes.ravel(), synth.items()):
+        r = estimate_online(X)
+        for j, m in enumerate(r.names):
+            ax.plot(r.history[:, j], label=m)
+        ax.axhline(0.75, color="0.5", ls=":", lw=0.8)
+        if r.decided_at is not None:
+            ax.axvline(r.decided_at, color="k", ls="--", lw=0.8)
+        ax.set_title(f"{name}: {r.model} @ {r.decided_at}", fontsize=9)
+        ax.set_ylim(-0.02, 1.02)
+    axes[0, 0].legend(fontsize=7)
+    fig.supxlabel("sample")
+    fig.supylabel("model probability (Eq. 4.16)")
+    fig.tight_layout()
+    with atomic_path(os.path.join(out_dir, "articulation_online.png")) as tmp:
+        fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    # Sturm logs
+    truth = {"dishwasher": "revolute", "drawer": "prismatic", "left_door": "revolute", "right_door": "revolute"}
+    rows, radii = [], defaultdict(list)
+    for p in sorted(glob.glob(os.path.join(sturm, "*", "*.log"))):
+        X = np.loadtxt(p)
+        cls = os.path.basename(os.path.dirname(p))
+        r = estimate_online(X)
+        row = {"log": f"{cls}/{os.path.basename(p)}", "n": len(X), "truth": truth[cls], "model": r.model,
+               "decided_at": r.decided_at, "fraction": None if r.decided_at is None else r.decided_at / len(X),
+               "first": r.first_decision, "revised": r.revised,
+               "radius": r.configuration.get("radius"), "rms": r.configuration.get("rms_residual")}
+        rows.append(row)
+        if row["radius"] is not None:
+            radii[cls].append(row["radius"])
+    rep["sturm"] = rows
+    rep["sturm_radii"] = dict(radii)
+    # SLAM
+    res = monte_carlo(runs=runs_slam, steps=600, seed=0, keep_last=True)
+    world, sim, results = res.pop("_last")
+    plot_run(world, sim, results, os.path.join(out_dir, "articulation_slam.png"), frames=(10, 300, -1))
+    rep["slam"] = res
+    rep["bench"] = {"online": bench_online(2000), "slam_42": bench_slam(600),
+                    "scaling_ms": bench_scaling()}
+    return rep
+
+
+if __name__ == "__main__":
+    if "--report" in sys.argv:
+        print(json.dumps(report(), indent=1, default=str))
+        sys.exit(0)
+    quick = "--quick" in sys.argv
+    report_ = {
+        "online": bench_online(500 if quick else 2000),
+        "slam_42": bench_slam(200 if quick else 600),
+        "slam_step_ms_by_landmarks": bench_scaling((50, 200) if quick else (50, 100, 200, 500, 1000)),
+    }
+    print(json.dumps(report_, indent=1))

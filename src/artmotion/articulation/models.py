@@ -1,0 +1,349 @@
+"""Configuration fits of point articulation models, Eq. 4.1: ``X(t) = f_M(C, q(t)) + nu``.
+
+Each model separates the time-invariant configuration ``C`` (fitted from all samples at once,
+Section 4.3.3 / 4.8.1) from the motion variable ``q(t)`` (recovered by ``G: (X, C) -> q``,
+Section 4.8.2). Points are handled in 3-D; 2-D tracks are embedded in the plane ``z = 0`` and
+the revolute model then keeps the axis ``(0, 0, 1)``.
+
+=============  ============================================  =====================
+model          configuration ``C``                           motion ``q``
+=============  ============================================  =====================
+static         ``centre``                                    (none)
+prismatic      ``origin``, unit ``direction``                 signed length
+revolute       ``centre``, unit ``axis``, ``radius``, ``u``   angle (rad, unwrapped)
+planar         ``origin``, ``normal``, in-plane ``u``, ``v``  2-D coordinates
+=============  ============================================  =====================
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from artmotion.errors import InputError
+
+__all__ = [
+    "PointModel",
+    "StaticModel",
+    "PrismaticModel",
+    "RevoluteModel",
+    "PlanarModel",
+    "POINT_MODELS",
+    "fit_circle_2d",
+    "fit_circle_joint",
+    "as_points3",
+    "make_model",
+]
+
+
+def as_points3(X) -> tuple[np.ndarray, int]:
+    """``(n, 3)`` float array and the original dimension (2 or 3)."""
+    X = np.asarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[1] not in (2, 3):
+        raise InputError(f"points must be an (n, 2) or (n, 3) array, got shape {X.shape}")
+    if not np.all(np.isfinite(X)):
+        raise InputError("points contain NaN or infinite values")
+    dim = X.shape[1]
+    if dim == 2:
+        X = np.column_stack([X, np.zeros(len(X))])
+    return X, dim
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def _orthonormal_to(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = _unit(np.cross(n, a))
+    return u, np.cross(n, u)
+
+
+def fit_circle_2d(P: np.ndarray) -> tuple[np.ndarray, float]:
+    """Circle through 2-D points: algebraic (Kasa) fit, refined by Gauss-Newton on the geometric
+    distance. Linear in ``(cx, cy, r^2 - |c|^2)`` — the "separate" estimate of Table 4.1.
+    """
+    P = np.asarray(P, dtype=float)
+    mu = P.mean(axis=0)
+    Q = P - mu
+    scale = max(float(np.sqrt((Q**2).sum(axis=1).mean())), 1e-12)
+    Q = Q / scale
+    A = np.column_stack([2 * Q, np.ones(len(Q))])
+    b = (Q**2).sum(axis=1)
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    c = sol[:2]
+    r = math.sqrt(max(sol[2] + c @ c, 1e-24))
+    # geometric refinement (a few Gauss-Newton steps; stop if the radius explodes = a line)
+    for _ in range(10):
+        d = Q - c
+        rho = np.sqrt((d**2).sum(axis=1))
+        if np.any(rho < 1e-12) or r > 1e6:
+            break
+        res = rho - r
+        J = np.empty((len(Q), 3))
+        J[:, :2] = -d / rho[:, None]
+        J[:, 2] = -1.0
+        try:
+            step = np.linalg.solve(J.T @ J, -(J.T @ res))
+        except np.linalg.LinAlgError:
+            break
+        c = c + step[:2]
+        r = abs(r + step[2])
+        if np.abs(step).max() < 1e-7:
+            break
+    return mu + c * scale, r * scale
+
+
+def fit_circle_joint(t: np.ndarray, P: np.ndarray, theta0: float | None = None, omega: float | None = None):
+    """Joint estimate of Eq. 4.29: ``X(t) = c + r [cos(theta0 + t w), sin(theta0 + t w)]``.
+
+    Non-linear least squares in ``(cx, cy, r, theta0, w)``; needs a starting guess, taken from the
+    chord (mean of the points as centre, unit radius, angle of the first point, small velocity)
+    unless given. Returns ``(centre, radius, theta0, omega)``.
+    """
+    from scipy.optimize import least_squares
+
+    t = np.asarray(t, dtype=float)
+    P = np.asarray(P, dtype=float)
+    c0 = P.mean(axis=0)
+    d0 = P[0] - c0
+    r0 = float(np.sqrt(((P - c0) ** 2).sum(axis=1)).mean())
+    th0 = math.atan2(d0[1], d0[0]) if theta0 is None else theta0
+    if omega is None:
+        a = np.unwrap(np.arctan2(P[:, 1] - c0[1], P[:, 0] - c0[0]))
+        omega = float(np.polyfit(t, a, 1)[0]) if len(t) > 1 else 0.0
+
+    def res(p):
+        cx, cy, r, th, w = p
+        ang = th + t * w
+        return np.concatenate([P[:, 0] - cx - r * np.cos(ang), P[:, 1] - cy - r * np.sin(ang)])
+
+    sol = least_squares(res, [c0[0], c0[1], r0, th0, omega], method="lm")
+    cx, cy, r, th, w = sol.x
+    return np.array([cx, cy]), abs(float(r)), float(th), float(w)
+
+
+class PointModel:
+    """Base class: ``fit`` sets the configuration from an ``(n, 3)`` array of points."""
+
+    name = "base"
+    dof = 0
+
+    def fit(self, X: np.ndarray) -> "PointModel":  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def motion(self, X: np.ndarray) -> np.ndarray:
+        """``G(X, C)``: motion variables ``(n, dof)`` of points ``(n, 3)``."""
+        raise NotImplementedError
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """``f_M(C, q)``: points ``(n, 3)`` for motion variables ``(n, dof)``."""
+        raise NotImplementedError
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """``d f_M / d q`` at one ``q`` (``(3, dof)``)."""
+        raise NotImplementedError
+
+    def residuals(self, X: np.ndarray) -> np.ndarray:
+        """Distance of each point to the model's manifold."""
+        return np.linalg.norm(X - self.predict(self.motion(X)), axis=1)
+
+    def configuration(self, dim: int = 3) -> dict:
+        raise NotImplementedError
+
+
+class StaticModel(PointModel):
+    name = "static"
+    dof = 0
+
+    def __init__(self, centre=None):
+        self.centre = None if centre is None else np.asarray(centre, dtype=float)
+
+    def fit(self, X):
+        self.centre = np.asarray(X, dtype=float).mean(axis=0)
+        return self
+
+    def motion(self, X):
+        return np.zeros((len(X), 0))
+
+    def predict(self, q):
+        return np.repeat(self.centre[None, :], len(q), axis=0)
+
+    def jacobian(self, q):
+        return np.zeros((3, 0))
+
+    def configuration(self, dim=3):
+        return {"centre": self.centre[:dim].tolist()}
+
+
+class PrismaticModel(PointModel):
+    name = "prismatic"
+    dof = 1
+
+    def __init__(self, origin=None, direction=None):
+        self.origin = None if origin is None else np.asarray(origin, dtype=float)
+        self.direction = None if direction is None else _unit(direction)
+
+    def fit(self, X):
+        X = np.asarray(X, dtype=float)
+        mu = X.mean(axis=0)
+        _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
+        d = Vt[0]
+        if (X[-1] - X[0]) @ d < 0:  # q grows along the track
+            d = -d
+        # origin: the first sample's projection on the line, so q(0) ~ 0
+        self.origin = mu + ((X[0] - mu) @ d) * d
+        self.direction = d
+        return self
+
+    @property
+    def params(self) -> tuple:
+        """``(origin, direction)`` as six floats (for scalar filter code)."""
+        return (*self.origin.tolist(), *self.direction.tolist())
+
+    def motion(self, X):
+        return ((np.asarray(X) - self.origin) @ self.direction)[:, None]
+
+    def predict(self, q):
+        return self.origin + np.asarray(q).reshape(-1, 1) * self.direction
+
+    def jacobian(self, q):
+        return self.direction.reshape(3, 1)
+
+    def predict1(self, q: float) -> np.ndarray:
+        return self.origin + q * self.direction
+
+    def jacobian1(self, q: float) -> np.ndarray:
+        return self.direction
+
+    def configuration(self, dim=3):
+        return {"origin": self.origin[:dim].tolist(), "direction": self.direction[:dim].tolist()}
+
+
+class RevoluteModel(PointModel):
+    """Point on a circle: ``f(C, q) = c + r (cos q u + sin q v)``, ``v = axis x u``."""
+
+    name = "revolute"
+    dof = 1
+
+    def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
+        self.centre = None if centre is None else np.asarray(centre, dtype=float)
+        self.axis = None if axis is None else _unit(axis)
+        self.radius = radius
+        self.u = None if u is None else _unit(u)
+        self.planar_axis = planar_axis  # fixed plane normal (2-D data), or None to estimate
+
+    @property
+    def v(self):
+        if getattr(self, "_v", None) is None:
+            self._v = np.cross(self.axis, self.u)
+        return self._v
+
+    def fit(self, X):
+        X = np.asarray(X, dtype=float)
+        mu = X.mean(axis=0)
+        if self.planar_axis is not None:
+            n = _unit(self.planar_axis)
+        else:
+            _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
+            n = Vt[2]
+        e1, e2 = _orthonormal_to(n)
+        P = np.column_stack([(X - mu) @ e1, (X - mu) @ e2])
+        c2, r = fit_circle_2d(P)
+        centre = mu + c2[0] * e1 + c2[1] * e2
+        # orient the axis so that the angle grows along the track (right-hand rule)
+        a0 = X[0] - centre
+        a1 = X[-1] - centre
+        if np.cross(a0, a1) @ n < 0:
+            n = -n
+        u = a0 - (a0 @ n) * n
+        if np.linalg.norm(u) < 1e-12:
+            u = _orthonormal_to(n)[0]
+        self.centre, self.axis, self.radius, self.u = centre, n, float(r), _unit(u)
+        self._v = np.cross(self.axis, self.u)
+        return self
+
+    @property
+    def params(self) -> tuple:
+        """``(centre, radius, u, v)`` as ten floats (for scalar filter code)."""
+        return (*self.centre.tolist(), float(self.radius), *self.u.tolist(), *self.v.tolist())
+
+    def motion(self, X):
+        d = np.asarray(X) - self.centre
+        ang = np.arctan2(d @ self.v, d @ self.u)
+        return np.unwrap(ang)[:, None]
+
+    def predict(self, q):
+        q = np.asarray(q, dtype=float).reshape(-1, 1)
+        return self.centre + self.radius * (np.cos(q) * self.u + np.sin(q) * self.v)
+
+    def jacobian(self, q):
+        q = float(np.asarray(q).reshape(-1)[0])
+        return (self.radius * (-math.sin(q) * self.u + math.cos(q) * self.v)).reshape(3, 1)
+
+    def predict1(self, q: float) -> np.ndarray:
+        return self.centre + (self.radius * math.cos(q)) * self.u + (self.radius * math.sin(q)) * self.v
+
+    def jacobian1(self, q: float) -> np.ndarray:
+        return (-self.radius * math.sin(q)) * self.u + (self.radius * math.cos(q)) * self.v
+
+    def configuration(self, dim=3):
+        out = {"centre": self.centre[:dim].tolist(), "radius": float(self.radius)}
+        out["axis"] = self.axis.tolist()
+        return out
+
+
+class PlanarModel(PointModel):
+    """Point moving freely in a plane (2 DOF): ``f(C, q) = origin + q1 u + q2 v``."""
+
+    name = "planar"
+    dof = 2
+
+    def __init__(self, origin=None, normal=None, planar_axis=None):
+        self.origin = None if origin is None else np.asarray(origin, dtype=float)
+        self.normal = None if normal is None else _unit(normal)
+        self.planar_axis = planar_axis
+        if self.normal is not None:
+            self.u, self.v = _orthonormal_to(self.normal)
+
+    def fit(self, X):
+        X = np.asarray(X, dtype=float)
+        mu = X.mean(axis=0)
+        if self.planar_axis is not None:
+            n = _unit(self.planar_axis)
+            self.u, self.v = _orthonormal_to(n)
+        else:
+            _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
+            n, self.u = Vt[2], Vt[0]
+            self.v = np.cross(n, self.u)
+        self.origin = mu + ((X[0] - mu) @ self.u) * self.u + ((X[0] - mu) @ self.v) * self.v
+        self.normal = n
+        return self
+
+    def motion(self, X):
+        d = np.asarray(X) - self.origin
+        return np.column_stack([d @ self.u, d @ self.v])
+
+    def predict(self, q):
+        q = np.asarray(q, dtype=float).reshape(-1, 2)
+        return self.origin + q[:, :1] * self.u + q[:, 1:] * self.v
+
+    def jacobian(self, q):
+        return np.column_stack([self.u, self.v])
+
+    def configuration(self, dim=3):
+        return {"origin": self.origin[:dim].tolist(), "normal": self.normal.tolist()}
+
+
+POINT_MODELS = {"static": StaticModel, "prismatic": PrismaticModel, "revolute": RevoluteModel, "planar": PlanarModel}
+
+
+def make_model(name: str, dim: int = 3) -> PointModel:
+    """A fresh model by name; for 2-D data the revolute/planar plane is fixed to ``z = 0``."""
+    cls = POINT_MODELS[name]
+    if name in ("revolute", "planar") and dim == 2:
+        return cls(planar_axis=np.array([0.0, 0.0, 1.0]))
+    return cls()

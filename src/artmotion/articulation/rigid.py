@@ -1,0 +1,259 @@
+"""Rigid-body articulation classification, Section 4.3.2.
+
+Points ``p_i`` of one rigid body tracked in 3-D over ``F`` frames give ``W = M S`` (Eq. 4.3-4.4):
+``W`` is ``3F x N`` (all u rows, then all v rows, then all w rows), ``M`` stacks the rows of
+``[R_f | t_f]`` and ``S`` the homogeneous points. The SVD gives ``M^ = U S^1/2`` and
+``S^ = S^1/2 V^T`` (Eq. 4.5-4.6), defined up to an invertible ``A`` (4x4); the metric upgrade finds
+``A`` from the constraints that every frame's rows ``i_f, j_f, k_f`` are orthonormal (Eq. 4.7,
+here in its homogeneous form: ``Q = A_R A_R^T`` is solved linearly, then factored) and that the last
+row of ``S`` is all ones.
+
+From the recovered motions, relative to the first frame (``x^{t} = R x^{t0} + T``, Eq. 4.8), a body is
+
+* static (4.3.2.5): ``R = I`` and ``T = 0`` at every frame (within noise);
+* prismatic (4.3.2.1): ``R = I``, translations along one line;
+* revolute (4.3.2.2): one fixed rotation axis and a line of fixed points ``(R - I) c + T = 0``
+  (the translation is the one the rotation about that line implies at every frame);
+* plane constrained (4.3.2.3): rotation only about one normal ``n`` and ``T . n = 0`` after
+  accounting for the rotation (``(R x_0 + T - x_0) . n = 0``);
+* general (4.3.2.4, reported as ``rigid``): anything else.
+
+6-D pose tracks (position + unit quaternion) skip the factorisation: the poses are the motions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from artmotion.errors import InputError
+from artmotion.geometry.rotations import quat_to_matrix
+
+__all__ = ["factorize", "classify_motion", "classify_points", "classify_poses", "RigidResult", "stack_w"]
+
+
+def stack_w(tracks: np.ndarray) -> np.ndarray:
+    """``W`` of Eq. 4.3 from ``tracks`` of shape ``(F, N, 3)``: u rows, v rows, w rows."""
+    tracks = np.asarray(tracks, dtype=float)
+    if tracks.ndim != 3 or tracks.shape[2] != 3:
+        raise InputError(f"rigid-body tracks must have shape (frames, points, 3), got {tracks.shape}")
+    return np.concatenate([tracks[:, :, 0], tracks[:, :, 1], tracks[:, :, 2]], axis=0)
+
+
+def _sym_row(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Coefficients of ``a Q b^T`` in the 10 unique entries of a symmetric 4x4 ``Q``."""
+    out = []
+    for i in range(4):
+        for j in range(i, 4):
+            out.append(a[i] * b[j] + (a[j] * b[i] if i != j else 0.0))
+    return np.array(out)
+
+
+def _sym_from(vec: np.ndarray) -> np.ndarray:
+    Q = np.zeros((4, 4))
+    k = 0
+    for i in range(4):
+        for j in range(i, 4):
+            Q[i, j] = Q[j, i] = vec[k]
+            k += 1
+    return Q
+
+
+def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotations ``(F, 3, 3)``, translations ``(F, 3)`` and shape ``(N, 3)`` with ``x_fi = R_f s_i + t_f``.
+
+    ``tracks``: ``(F, N, 3)`` with ``N >= 4`` points not all in one plane for a unique answer
+    (with 3 points the fourth is added as the normal to their plane, which a rigid body carries
+    along). The answer is unique up to the choice of the body frame (a rotation and an origin).
+    ``method``: ``orthonormal`` (Eq. 4.7), ``anchor`` (first frame fixes the gauge) or ``auto``
+    (Eq. 4.7 when its constraints determine ``Q``, else anchor).
+    """
+    tracks = np.asarray(tracks, dtype=float)
+    if tracks.ndim != 3 or tracks.shape[2] != 3 or tracks.shape[1] < 3 or tracks.shape[0] < 2:
+        raise InputError(f"need at least 3 points over 2 frames as (frames, points, 3), got {tracks.shape}")
+    if not np.all(np.isfinite(tracks)):
+        raise InputError("rigid-body tracks contain NaN")
+    n_points = tracks.shape[1]
+    if tracks.shape[1] == 3:  # a virtual fourth point off the plane of the three
+        a, b, c = tracks[:, 0], tracks[:, 1], tracks[:, 2]
+        n = np.cross(b - a, c - a)
+        scale = np.linalg.norm(b - a, axis=1, keepdims=True)
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12) * scale
+        tracks = np.concatenate([tracks, ((a + b + c) / 3 + n)[:, None, :]], axis=1)
+    F = tracks.shape[0]
+    W = stack_w(tracks)
+    U, s, Vt = np.linalg.svd(W, full_matrices=False)
+    Mh = U[:, :4] * np.sqrt(s[:4])
+    Sh = np.sqrt(s[:4])[:, None] * Vt[:4]
+    # last row of S must be ones: b S^ = 1
+    b, *_ = np.linalg.lstsq(Sh.T, np.ones(Sh.shape[1]), rcond=None)
+    # metric constraints on Q = A_R A_R^T (Eq. 4.7 in homogeneous form)
+    rows, rhs = [], []
+    for f in range(F):
+        r = [Mh[f], Mh[F + f], Mh[2 * F + f]]
+        for i in range(3):
+            for j in range(i, 3):
+                rows.append(_sym_row(r[i], r[j]))
+                rhs.append(1.0 if i == j else 0.0)
+    # b is orthogonal to A_R's columns: Q b = 0 (four more equations, weighted like the rest)
+    for k in range(4):
+        e = np.zeros(4)
+        e[k] = 1.0
+        rows.append(_sym_row(e, b) * 0.5)
+        rhs.append(0.0)
+    C = np.array(rows)
+    sv = np.linalg.svd(C, compute_uv=False)
+    well_posed = sv[-1] > 1e-3 * sv[0]
+    if method == "orthonormal" or (method == "auto" and well_posed):
+        q, *_ = np.linalg.lstsq(C, np.array(rhs), rcond=None)
+        Q = _sym_from(q)
+        w, V = np.linalg.eigh(Q)
+        order = np.argsort(w)[::-1][:3]
+        A_R = V[:, order] * np.sqrt(np.maximum(w[order], 1e-12))
+        A_R = A_R - np.outer(b, b @ A_R) / (b @ b)  # enforce b A_R = 0
+        a_t = b / (b @ b)
+        A = np.column_stack([A_R, a_t])
+    else:
+        # Degenerate motion (no rotation, or rotation about one axis only): the orthonormality
+        # constraints leave Q undetermined. 3-D tracks are metric already, so fix the gauge by
+        # the first frame instead: M_0 A = [I | 0] and b A = e_4, i.e. A = [M^_0; b]^-1.
+        A = np.linalg.inv(np.vstack([Mh[[0, F, 2 * F]], b]))
+    M = Mh @ A
+    S = np.linalg.solve(A, Sh)
+    shape = (S[:3] / S[3]).T
+    if not np.all(np.isfinite(shape)):
+        shape = tracks[0].copy()
+    # Every frame's motion from the factorised shape by orthogonal Procrustes (projects M's rows
+    # onto SO(3)); if the factorisation was degenerate the first frame's points serve as shape.
+    best = None
+    for cand in (shape, tracks[0]):
+        R, t = _procrustes(cand, tracks)
+        rms = float(np.sqrt(np.mean((tracks - (np.einsum("fij,nj->fni", R, cand) + t[:, None, :])) ** 2)))
+        if best is None or rms < best[3] - 1e-12:
+            best = (R, t, cand, rms)
+    R, t, shape, _ = best
+    return R, t, shape[:n_points]
+
+
+def _procrustes(shape: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``R_f, t_f`` minimising ``sum_i |x_fi - R_f s_i - t_f|^2`` for every frame (Kabsch)."""
+    mu_s = shape.mean(axis=0)
+    mu_x = tracks.mean(axis=1)
+    H = np.einsum("ni,fnj->fij", shape - mu_s, tracks - mu_x[:, None, :])
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.einsum("fij,fjk->fik", U, Vt)))
+    D = np.zeros_like(H)
+    D[:, 0, 0] = 1.0
+    D[:, 1, 1] = 1.0
+    D[:, 2, 2] = d
+    R = np.einsum("fji,fjk,fkl->fil", Vt, D, np.transpose(U, (0, 2, 1)))
+    t = mu_x - np.einsum("fij,j->fi", R, mu_s)
+    return R, t
+
+
+@dataclass
+class RigidResult:
+    model: str  # static | prismatic | revolute | planar | rigid
+    configuration: dict
+    motion: np.ndarray  # per frame motion variables of the model
+    rotations: np.ndarray  # relative to the first frame
+    translations: np.ndarray
+    residuals: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "configuration": self.configuration,
+                "motion": [list(map(float, np.atleast_1d(m))) for m in self.motion],
+                "residuals": self.residuals}
+
+
+def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: float = 0.1, centre=None) -> RigidResult:
+    """Classify a sequence of rigid motions ``x_f = R_f x_0 + t_f`` (relative to frame 0).
+
+    ``noise``: positional noise (length); ``size``: the body's radius (rms distance of its points
+    from their centroid), turning ``noise`` into an angular noise ``noise / size``. Tolerances are
+    5 x those levels (the largest of a few hundred Gaussian deviations stays below 4 sigma).
+    ``centre``: the body's centroid in the first frame (angular noise moves a point at distance
+    ``d`` from it by ``d * noise / size``).
+    """
+    centre = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
+    R = np.asarray(R, dtype=float)
+    t = np.asarray(t, dtype=float)
+    F = len(R)
+    ang_tol = 5.0 * noise / max(size, noise)
+    lin_tol = 5.0 * noise
+    rv = Rotation.from_matrix(R).as_rotvec()
+    angles = np.linalg.norm(rv, axis=1)
+    tn = np.linalg.norm(t, axis=1)
+    res = {"max_angle": float(angles.max()), "max_translation": float(tn.max())}
+    if angles.max() < ang_tol:
+        if tn.max() < lin_tol:
+            return RigidResult("static", {}, np.zeros((F, 0)), R, t, res)
+        _, sv, Vt = np.linalg.svd(t, full_matrices=False)
+        d = Vt[0] if t[-1] @ Vt[0] >= 0 else -Vt[0]
+        off = np.linalg.norm(t - np.outer(t @ d, d), axis=1).max()
+        res["line_residual"] = float(off)
+        if off < lin_tol:
+            return RigidResult("prismatic", {"direction": d.tolist()}, (t @ d)[:, None], R, t, res)
+        # translation in a plane, no rotation: plane constrained
+        n = Vt[2]
+        res["plane_residual"] = float(np.abs(t @ n).max())
+        if np.abs(t @ n).max() < lin_tol:
+            return RigidResult("planar", {"normal": n.tolist()}, np.column_stack([t @ Vt[0], t @ Vt[1], np.zeros(F)]), R, t, res)
+        return RigidResult("rigid", {}, np.column_stack([t, rv]), R, t, res)
+    # a common rotation axis: the rotation vectors lie on one line
+    _, sv, Vt = np.linalg.svd(rv, full_matrices=False)
+    axis = Vt[0] if rv[np.argmax(angles)] @ Vt[0] >= 0 else -Vt[0]
+    off_axis = float(np.linalg.norm(rv - np.outer(rv @ axis, axis), axis=1).max())
+    res["off_axis_rotation"] = off_axis
+    signed = rv @ axis
+    if off_axis < ang_tol:
+        # fixed points: (R_f - I) c + t_f = 0 for all f (least squares over frames)
+        Acat = np.concatenate([R[f] - np.eye(3) for f in range(F)])
+        bcat = -np.concatenate([t[f] for f in range(F)])
+        # c is defined up to the axis direction: regularise by adding axis . c = 0
+        Acat = np.vstack([Acat, axis[None, :]])
+        bcat = np.concatenate([bcat, [0.0]])
+        c, *_ = np.linalg.lstsq(Acat, bcat, rcond=None)
+        fix = np.linalg.norm(np.einsum("fij,j->fi", R - np.eye(3), c) + t, axis=1)
+        res["fixed_point_residual"] = float(fix.max())
+        if fix.max() < lin_tol + ang_tol * np.linalg.norm(c - centre):
+            return RigidResult("revolute", {"axis": axis.tolist(), "point": c.tolist()}, signed[:, None], R, t, res)
+        # rotation about the normal and translation in the plane: plane constrained (4.3.2.3)
+        # the displacement of the axis point c, (R c + t - c), must stay perpendicular to n
+        disp = np.einsum("fij,j->fi", R, centre) + t - centre
+        res["plane_residual"] = float(np.abs(disp @ axis).max())
+        if np.abs(disp @ axis).max() < lin_tol:
+            e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(axis, e1)
+            return RigidResult("planar", {"normal": axis.tolist(), "point": centre.tolist()},
+                               np.column_stack([disp @ e1, disp @ e2, signed]), R, t, res)
+    return RigidResult("rigid", {}, np.column_stack([t, rv]), R, t, res)
+
+
+def _relative(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Motions taking frame 0's points to frame f: ``R_f R_0^T``, ``t_f - R_f R_0^T t_0``."""
+    Rr = np.einsum("fij,kj->fik", R, R[0])
+    tr = t - np.einsum("fij,j->fi", Rr, t[0])
+    return Rr, tr
+
+
+def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "auto") -> RigidResult:
+    """Factorise ``(F, N, 3)`` point tracks of one body and classify its motion."""
+    R, t, shape = factorize(tracks, method=method)
+    Rr, tr = _relative(R, t)
+    size = float(np.sqrt(((shape - shape.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    out = classify_motion(Rr, tr, noise=noise, size=size, centre=np.asarray(tracks)[0].mean(axis=0))
+    rms = float(np.sqrt(np.mean((np.asarray(tracks) - (np.einsum("fij,nj->fni", R, shape) + t[:, None, :])) ** 2)))
+    out.residuals["factorisation_rms"] = rms
+    return out
+
+
+def classify_poses(positions: np.ndarray, quats: np.ndarray, noise: float = 0.005, size: float = 0.1) -> RigidResult:
+    """Classify a 6-D pose track: positions ``(F, 3)`` and unit quaternions ``(F, 4)`` (x, y, z, w)."""
+    R = quat_to_matrix(np.asarray(quats, dtype=float))
+    t = np.asarray(positions, dtype=float)
+    Rr, tr = _relative(R, t)
+    return classify_motion(Rr, tr, noise=noise, size=size, centre=t[0])

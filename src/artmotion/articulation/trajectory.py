@@ -1,0 +1,174 @@
+"""Reading trajectory files and fitting them: the API behind ``artmotion articulation fit``.
+
+A trajectory file has one sample per row, whitespace- or comma-separated:
+
+* ``x y`` (2-D point), ``x y z`` (3-D point) or ``x y z qx qy qz qw`` (6-D pose, unit quaternion in
+  ``x, y, z, w`` order);
+* optionally a leading time column. It is taken as time when ``time=True`` (``--time``), when a
+  header row names the first column ``t``, ``time``, ``timestamp`` or ``stamp``, or when the row
+  has 4 or 8 columns (which only a time column explains). With ``time=False`` (``--no-time``) a
+  4- or 8-column file is an error. Without a time column samples are one time unit apart.
+
+Blank lines and lines starting with ``#`` are skipped; one header row (any non-numeric first row)
+is allowed. Every error names the file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from artmotion.errors import InputError
+
+__all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
+
+_TIME_NAMES = {"t", "time", "timestamp", "stamp", "sec", "secs", "seconds"}
+_SPLIT = re.compile(r"[,\s;]+")
+
+
+@dataclass
+class Trajectory:
+    points: np.ndarray  # (n, 2) or (n, 3)
+    quats: np.ndarray | None  # (n, 4) or None
+    time: np.ndarray | None
+    lines: np.ndarray  # 1-based line number of every sample
+    path: str | None = None
+
+    @property
+    def kind(self) -> str:
+        return "pose" if self.quats is not None else f"point{self.points.shape[1]}d"
+
+
+def read_trajectory(path, time: bool | None = None) -> Trajectory:
+    """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except UnicodeDecodeError as exc:
+        raise InputError("not a text file", path=path) from exc
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=path) from exc
+    rows, lines = [], []
+    header = None
+    ncol = None
+    for no, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        tok = [t for t in _SPLIT.split(s) if t]
+        try:
+            vals = [float(t) for t in tok]
+        except ValueError:
+            if not rows and header is None:
+                header = [t.lower() for t in tok]
+                continue
+            raise InputError(f"not a number in row: {s[:60]!r}", path=path, line=no) from None
+        if ncol is None:
+            ncol = len(vals)
+            if header is not None and len(header) != ncol:
+                raise InputError(f"header has {len(header)} names but the row has {ncol} values", path=path, line=no)
+        elif len(vals) != ncol:
+            raise InputError(f"expected {ncol} columns, got {len(vals)}", path=path, line=no)
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError("NaN or infinite value", path=path, line=no)
+        rows.append(vals)
+        lines.append(no)
+    if not rows:
+        raise InputError("no samples", path=path)
+    has_time = time
+    if has_time is None:
+        has_time = (header is not None and header[0] in _TIME_NAMES) or ncol in (4, 8)
+    data = np.array(rows, dtype=float)
+    lines = np.array(lines)
+    tcol = None
+    if has_time:
+        tcol, data = data[:, 0], data[:, 1:]
+    width = data.shape[1]
+    if width not in (2, 3, 7):
+        what = "after the time column " if has_time else ""
+        raise InputError(f"expected 2 (x y), 3 (x y z) or 7 (x y z qx qy qz qw) columns {what}but got {width}",
+                         path=path, line=int(lines[0]))
+    if tcol is not None:
+        bad = np.flatnonzero(np.diff(tcol) <= 0)
+        if bad.size:
+            raise InputError("time must increase from row to row", path=path, line=int(lines[bad[0] + 1]))
+    quats = None
+    if width == 7:
+        quats = data[:, 3:]
+        norms = np.linalg.norm(quats, axis=1)
+        bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
+        if bad.size:
+            raise InputError(f"non-unit quaternion (norm {norms[bad[0]]:.4g})", path=path, line=int(lines[bad[0]]))
+        data = data[:, :3]
+    return Trajectory(data, quats, tcol, lines, path)
+
+
+def fit_points(points, time=None, **kwargs) -> dict:
+    """Algorithm 1 on a point track; the result dictionary of ``articulation fit --json``."""
+    from artmotion.articulation.online import estimate_online
+
+    res = estimate_online(points, time, **kwargs)
+    out = res.to_dict()
+    out["input"] = f"point{res.dim}d"
+    return out
+
+
+def fit_poses(positions, quats, time=None, noise: float = 0.005, min_samples: int = 7, horizon: int = 5) -> dict:
+    """Rigid-body classification (4.3.2) of a 6-D pose track, re-run on growing prefixes to tell when
+    the answer settled (``decided_at``: first sample from which every later prefix agrees)."""
+    from artmotion.articulation.rigid import classify_poses
+
+    P = np.asarray(positions, dtype=float)
+    Q = np.asarray(quats, dtype=float)
+    n = len(P)
+    base = {"input": "pose", "samples": n, "noise": noise, "probabilities": None, "first_decision": None}
+    if n < max(min_samples, 2):
+        return {**base, "model": "undecided", "decided_at": None, "configuration": {}, "motion": [], "prediction": []}
+    final = classify_poses(P, Q, noise=noise)
+    step = max(1, n // 200)
+    ks = list(range(min_samples, n, step)) + [n]
+    labels = [classify_poses(P[:k], Q[:k], noise=noise).model for k in ks]
+    decided_at = None
+    for j in range(len(ks) - 1, -1, -1):
+        if labels[j] != final.model:
+            break
+        decided_at = ks[j] - 1
+    first = next(((lab, k - 1) for lab, k in zip(labels, ks)), None)
+    motion = np.asarray(final.motion, dtype=float).reshape(n, -1)
+    # short prediction: constant velocity of the motion variables over the last samples, mapped back
+    pred = []
+    if final.model in ("static",):
+        pred = [P[0].tolist()] * horizon
+    elif n >= 2:
+        v = (P[-1] - P[max(0, n - 5)]) / max(1, min(4, n - 1))
+        if final.model == "revolute":
+            ax = np.asarray(final.configuration["axis"])
+            c = np.asarray(final.configuration["point"])
+            from artmotion.geometry.rotations import axis_angle_to_matrix
+
+            w = (motion[-1, 0] - motion[max(0, n - 5), 0]) / max(1, min(4, n - 1))
+            pred = [(axis_angle_to_matrix(ax, w * (h + 1)) @ (P[-1] - c) + c).tolist() for h in range(horizon)]
+        else:
+            pred = [(P[-1] + v * (h + 1)).tolist() for h in range(horizon)]
+    return {**base, "model": final.model, "decided_at": decided_at,
+            "first_decision": {"model": first[0], "at": first[1]} if first else None,
+            "configuration": final.configuration, "residuals": final.residuals,
+            "motion": motion.tolist(), "prediction": pred}
+
+
+def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_samples: int = 7, **kwargs) -> dict:
+    """Read ``path`` and fit it (points: Algorithm 1; poses: rigid-body classification)."""
+    traj = read_trajectory(path, time=time)
+    if traj.quats is not None:
+        noise = kwargs.get("noise") or kwargs.get("noise_floor") or 0.005
+        out = fit_poses(traj.points, traj.quats, traj.time, noise=noise, min_samples=min_samples)
+    else:
+        out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)
+    out["file"] = str(path)
+    out["time_column"] = traj.time is not None
+    return out

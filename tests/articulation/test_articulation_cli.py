@@ -1,0 +1,115 @@
+"""``artmotion articulation fit`` and ``artmotion slam simulate`` through the root CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+
+def _write(path, rows, fmt="%.6f", header=None, sep=" "):
+    with open(path, "w") as fh:
+        if header:
+            fh.write(header + "\n")
+        for r in rows:
+            fh.write(sep.join(fmt % v for v in r) + "\n")
+    return path
+
+
+def _arc(n=150, noise=0.002, seed=0):
+    rng = np.random.default_rng(seed)
+    th = np.linspace(0, 1.4, n)
+    return np.column_stack([0.4 * np.cos(th), 0.4 * np.sin(th), 0.1 + 0 * th]) + rng.normal(0, noise, (n, 3))
+
+
+def test_fit_json_revolute(tmp_path, run_cli):
+    p = _write(tmp_path / "door.txt", _arc())
+    code, out, err = run_cli("articulation", "fit", p, "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["model"] == "revolute"
+    assert set(res["probabilities"]) == {"static", "prismatic", "revolute"}
+    assert isinstance(res["decided_at"], int)
+    assert abs(res["configuration"]["radius"] - 0.4) < 0.01
+    assert len(res["motion"]) == 150 and len(res["prediction"]) == 5
+
+
+def test_fit_summary_and_time_column_with_header(tmp_path, run_cli):
+    X = _arc()
+    t = np.arange(len(X)) * 0.05
+    p = _write(tmp_path / "door.csv", np.column_stack([t, X]), header="time,x,y,z", sep=",")
+    code, out, err = run_cli("articulation", "fit", p)
+    assert code == 0, err
+    assert "model: revolute" in out and "time column" in out
+    code, out, _ = run_cli("articulation", "fit", p, "--json", "--threshold", "0.9", "--min-samples", "10")
+    assert json.loads(out)["time_column"] is True
+
+
+def test_fit_2d_prismatic_and_pose(tmp_path, run_cli):
+    n = 100
+    rng = np.random.default_rng(1)
+    xy = np.column_stack([np.linspace(0, 0.5, n), np.linspace(0, 0.25, n)]) + rng.normal(0, 0.002, (n, 2))
+    code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "p.txt", xy), "--json")
+    assert code == 0 and json.loads(out)["model"] == "prismatic"
+    pose = np.column_stack([np.linspace(0, 0.5, n), np.zeros(n), np.zeros(n), np.tile([0, 0, 0, 1.0], (n, 1))])
+    code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "pose.txt", pose), "--json")
+    res = json.loads(out)
+    assert code == 0 and res["model"] == "prismatic" and res["input"] == "pose"
+
+
+def test_constant_trajectory_is_static(tmp_path, run_cli):
+    p = _write(tmp_path / "c.txt", np.tile([1.0, 2.0, 3.0], (80, 1)))
+    code, out, _ = run_cli("articulation", "fit", p, "--json")
+    assert code == 0 and json.loads(out)["model"] == "static"
+
+
+def test_too_few_samples_is_undecided(tmp_path, run_cli):
+    p = _write(tmp_path / "few.txt", [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0]])
+    code, out, _ = run_cli("articulation", "fit", p, "--json")
+    res = json.loads(out)
+    assert code == 0 and res["model"] == "undecided" and res["decided_at"] is None
+
+
+@pytest.mark.parametrize("content,needle", [
+    ("0 0 0\n1 1\n", "f.txt:2: expected 3 columns"),
+    ("0 0 0\nnan 0 0\n", "f.txt:2: NaN"),
+    ("0 0 0 0 0 0 2\n", "f.txt:1: non-unit quaternion"),
+    ("0 0 0 0 0\n", "f.txt:1: expected 2"),
+    ("# only a comment\n", "f.txt: no samples"),
+    ("0 1 2\nabc 1 2\n", "f.txt:2: not a number"),
+    ("0 0 0 0\n0 1 1 1\n", "f.txt:2: time must increase"),
+])
+def test_bad_input_is_one_line(tmp_path, run_cli, content, needle):
+    p = tmp_path / "f.txt"
+    p.write_text(content)
+    code, out, err = run_cli("articulation", "fit", p)
+    assert code == 2
+    assert needle in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_missing_file_and_bad_options(tmp_path, run_cli):
+    code, _, err = run_cli("articulation", "fit", tmp_path / "nope.txt")
+    assert code == 2 and "no such file" in err
+    p = _write(tmp_path / "a.txt", _arc(20))
+    code, _, err = run_cli("articulation", "fit", p, "--threshold", "1.5")
+    assert code == 2 and "threshold" in err
+    code, _, err = run_cli("articulation", "fit", p, "--no-time", "--min-samples", "2")
+    assert code == 2
+
+
+def test_slam_simulate_json_and_plot(tmp_path, run_cli):
+    png = tmp_path / "slam.png"
+    code, out, err = run_cli("slam", "simulate", "--steps", "150", "--runs", "1", "--landmarks", "20",
+                             "--json", "--plot", png)
+    assert code == 0, err
+    res = json.loads(out)
+    for k in ("articulated", "ekf"):
+        assert res[k]["translation_error"] >= 0 and res[k]["rotation_error"] >= 0
+    assert png.exists() and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_slam_bad_options(run_cli, tmp_path):
+    code, _, err = run_cli("slam", "simulate", "--landmarks", "1", "--prismatic", "1", "--revolute", "1")
+    assert code == 2 and err.startswith("artmotion: error:")
+    code, _, err = run_cli("slam", "simulate", "--plot", tmp_path / "x.jpg", "--runs", "1", "--steps", "5")
+    assert code == 2

@@ -1,0 +1,99 @@
+"""Factorisation W = M S (Eq. 4.2-4.7) and rigid-body classification (4.3.2)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation as Rot
+
+from artmotion.articulation.rigid import classify_points, classify_poses, factorize, stack_w
+from artmotion.errors import InputError
+
+RNG = np.random.default_rng(0)
+SHAPE = RNG.normal(size=(6, 3)) * 0.1
+
+
+def _motion(kind, f):
+    a = 0.03 * f
+    if kind == "static":
+        return np.eye(3), np.zeros(3)
+    if kind == "prismatic":
+        return np.eye(3), np.array([1.0, 2.0, 0.5]) * 0.01 * f / np.sqrt(5.25)
+    if kind == "revolute":
+        R = Rot.from_rotvec([0, 0, a]).as_matrix()
+        c = np.array([0.5, 0.2, 0.0])
+        return R, c - R @ c
+    if kind == "planar":
+        return Rot.from_rotvec([0, 0, a]).as_matrix(), np.array([0.02 * f, 0.01 * f, 0.0])
+    R = Rot.from_rotvec([a, 0.5 * a, 0.2 * np.sin(f / 5)]).as_matrix()
+    return R, np.array([0.01 * f, 0.02 * f, -0.01 * f])
+
+
+def _tracks(kind, F=30, noise=0.001, seed=0):
+    rng = np.random.default_rng(seed)
+    out = []
+    for f in range(F):
+        R, t = _motion(kind, f)
+        out.append(SHAPE @ R.T + t)
+    return np.array(out) + rng.normal(0, noise, (F, len(SHAPE), 3))
+
+
+def test_w_is_rank_four_for_a_rigid_body():
+    W = stack_w(_tracks("general", noise=0.0))
+    s = np.linalg.svd(W, compute_uv=False)
+    assert s[3] > 1e-3 * s[0] and s[4] < 1e-10 * s[0]
+
+
+@pytest.mark.parametrize("method", ["orthonormal", "auto"])
+def test_factorisation_recovers_shape_and_motion(method):
+    tracks = _tracks("general", noise=0.0)
+    R, t, S = factorize(tracks, method=method)
+    # rotations are proper and reproduce the data
+    assert np.allclose(np.linalg.det(R), 1.0)
+    rec = np.einsum("fij,nj->fni", R, S) + t[:, None, :]
+    assert np.abs(rec - tracks).max() < 1e-6
+    # the shape is metric: pairwise distances as in the true body
+    d_true = np.linalg.norm(SHAPE[:, None] - SHAPE[None], axis=2)
+    d_est = np.linalg.norm(S[:, None] - S[None], axis=2)
+    assert np.abs(d_true - d_est).max() < 1e-6
+    # relative rotations match the truth
+    for f in (5, 17, 29):
+        Rt = _motion("general", f)[0] @ _motion("general", 0)[0].T
+        Re = R[f] @ R[0].T
+        assert np.abs(Rt - Re).max() < 1e-6
+
+
+@pytest.mark.parametrize("kind,expected", [
+    ("static", "static"), ("prismatic", "prismatic"), ("revolute", "revolute"),
+    ("planar", "planar"), ("general", "rigid"),
+])
+def test_rigid_classification(kind, expected):
+    res = classify_points(_tracks(kind), noise=0.001)
+    assert res.model == expected, res.residuals
+    if expected == "revolute":
+        assert abs(abs(res.configuration["axis"][2]) - 1) < 0.02
+        c = np.array(res.configuration["point"])
+        assert np.linalg.norm(c[:2] - [0.5, 0.2]) < 0.02
+
+
+def test_three_points_are_enough():
+    tr = _tracks("revolute", noise=0.0005)[:, :3]
+    assert classify_points(tr, noise=0.001).model == "revolute"
+
+
+def test_pose_track_classification():
+    n = 60
+    a = np.linspace(0, 1.0, n)
+    c = np.array([0.5, 0.0, 0.0])
+    R = Rot.from_rotvec(np.column_stack([np.zeros(n), np.zeros(n), a]))
+    pos = R.apply(-c) + c
+    assert classify_poses(pos, R.as_quat(), noise=0.001).model == "revolute"
+    pos = np.column_stack([np.linspace(0, 0.4, n), np.zeros(n), np.zeros(n)])
+    q = np.tile([0, 0, 0, 1.0], (n, 1))
+    assert classify_poses(pos, q, noise=0.001).model == "prismatic"
+    assert classify_poses(np.zeros((n, 3)), q, noise=0.001).model == "static"
+    with pytest.raises(InputError):
+        classify_poses(pos, q * 2)
+
+
+def test_factorize_rejects_bad_shapes():
+    with pytest.raises(InputError):
+        factorize(np.zeros((5, 2, 3)))

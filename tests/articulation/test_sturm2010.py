@@ -1,0 +1,34 @@
+"""The 30 real gripper trajectories of Sturm et al. (2010): every log classified right, online.
+
+Skipped when ../shared/data/articulation/sturm2010 is absent.
+"""
+
+from collections import defaultdict
+
+import numpy as np
+
+from artmotion.articulation.online import estimate_online
+
+from conftest import shared_path
+
+TRUTH = {"dishwasher": "revolute", "drawer": "prismatic", "left_door": "revolute", "right_door": "revolute"}
+
+
+def test_every_log_classified_and_decided_early():
+    root = shared_path("articulation", "sturm2010")
+    fractions, revised, radii = [], [], defaultdict(list)
+    logs = sorted(root.glob("*/*.log"))
+    assert len(logs) >= 30
+    for log in logs:
+        X = np.loadtxt(log)
+        res = estimate_online(X)
+        truth = TRUTH[log.parent.name]
+        assert res.model == truth, (log, res.probabilities)
+        fractions.append(res.decided_at / len(X))
+        revised.append(res.revised)
+        if truth == "revolute":
+            radii[log.parent.name].append(res.configuration["radius"])
+    assert np.median(fractions) <= 0.30
+    assert np.mean(revised) <= 0.2  # a wrong first decision, corrected later, stays rare
+    for name, r in radii.items():
+        assert np.abs(np.array(r) - np.median(r)).max() <= 0.03, (name, r)

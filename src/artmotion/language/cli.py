@@ -1,9 +1,107 @@
-"""CLI commands of :mod:`artmotion.language` (registered on the root app by :func:`register`)."""
+"""CLI commands of :mod:`artmotion.language` (registered on the root app by :func:`register`).
+
+``artmotion describe`` tells what happened in a tracking result; ``artmotion grounding dataset``
+and ``artmotion grounding eval`` build and evaluate the shapes-and-colours grounding experiment.
+"""
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
+from typing import List, Optional
+
 import typer
+
+from artmotion.errors import InputError
+
+
+def _size(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX]\s*(\d+(?:\.\d*)?)\s*", text)
+    if not m or float(m.group(1)) <= 0 or float(m.group(2)) <= 0:
+        raise InputError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x480")
+    return float(m.group(1)), float(m.group(2))
+
+
+def describe_cmd(
+    results: Path = typer.Argument(..., help="Tracks: MOTChallenge results file (frame,id,x,y,w,h,...)."),
+    events: Optional[Path] = typer.Option(None, "--events", help="Events JSON lines written by the tracker."),
+    pose: Optional[Path] = typer.Option(None, "--pose", help="Pose predictions PRED.csv (artmotion pose predict)."),
+    cls: List[str] = typer.Option(["person"], "--class", help="Object class: NAME for all tracks, or ID=NAME (repeatable)."),
+    size: Optional[str] = typer.Option(None, "--size", help="Image size WIDTHxHEIGHT (default: extent of the boxes)."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate: say times in seconds too."),
+    pose_column: Optional[str] = typer.Option(None, "--pose-column", help="Opening-angle column (default: first containing 'open')."),
+    pose_subject: str = typer.Option("tool", "--pose-subject", help="Who opens and closes."),
+    pose_track: Optional[int] = typer.Option(None, "--pose-track", help="Track id of the posed object."),
+    open_above: Optional[float] = typer.Option(None, "--open-above", help="Angle at which it opens (hysteresis)."),
+    close_below: Optional[float] = typer.Option(None, "--close-below", help="Angle at which it closes (hysteresis)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the triplets with their sentences as JSON."),
+):
+    """Describe tracks in sentences: who enters, exits, moves where, merges, splits, walks together."""
+    from artmotion.io import read_events, read_mot
+    from artmotion.language.describe import describe, parse_classes, read_pose
+
+    if fps is not None and not fps > 0:
+        raise InputError(f"--fps must be positive, got {fps:g}")
+    rows = read_mot(results)
+    evs = read_events(events) if events is not None else None
+    pose_seq = None
+    if pose is not None:
+        frames, angles, _col = read_pose(pose, pose_column)
+        pose_seq = (frames, angles)
+    if not len(rows) and pose_seq is None and not evs:
+        raise InputError("no tracks to describe", path=results)
+    triplets = describe(
+        rows, evs, pose=pose_seq, classes=parse_classes(cls), pose_subject=pose_subject,
+        pose_track=pose_track, open_above=open_above, close_below=close_below,
+        image_size=_size(size), fps=fps,
+    )
+    if as_json:
+        typer.echo(json.dumps([t.to_dict() for t in triplets], indent=1))
+    else:
+        for t in triplets:
+            typer.echo(t.sentence)
+
+
+grounding_app = typer.Typer(
+    help="Ground spoken colour and shape words in images (compositional sparse model).",
+    no_args_is_help=True,
+)
+
+
+@grounding_app.command("dataset")
+def grounding_dataset(
+    out: Path = typer.Argument(..., help="Folder to create: images/, speech/, index.csv."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (same seed, same dataset)."),
+):
+    """Make the thesis's 156 shapes-and-colours examples: images and spoken '<colour> <shape>'."""
+    from artmotion.language.grounding.dataset import make_dataset
+
+    index = make_dataset(out, seed=seed)
+    typer.echo(f"wrote {index.parent} ({sum(1 for _ in open(index)) - 1} examples, index {index.name})")
+
+
+@grounding_app.command("eval")
+def grounding_eval(
+    dataset: Path = typer.Argument(..., help="Folder made by 'artmotion grounding dataset'."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for report.json and PNGs (default DATASET/eval)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed of folds and dictionary learning."),
+    as_json: bool = typer.Option(False, "--json", help="Print the accuracies as JSON."),
+):
+    """Retrieval (3-fold CV) and unseen colour–shape pairs, compositional vs paired model."""
+    from artmotion.language.grounding.evaluate import evaluate, format_report
+
+    report = evaluate(dataset, out=out if out is not None else Path(dataset) / "eval", seed=seed)
+    if as_json:
+        brief = {m: {part: report[m][part] for part in ("retrieval", "unseen")} for m in ("compositional", "paired")}
+        typer.echo(json.dumps(brief, indent=1))
+    else:
+        typer.echo(format_report(report))
 
 
 def register(app: typer.Typer) -> None:
     """Add this capability's commands to the root artmotion app."""
+    app.command("describe")(describe_cmd)
+    app.add_typer(grounding_app, name="grounding")

@@ -1,0 +1,462 @@
+"""Say what happened: tracks, tracking events and pose sequences to subject–verb–adjective triplets.
+
+Thesis 5.1. Inputs are the tracker's MOT results (``frame,id,x,y,w,h,...``), optionally its events
+(JSON lines: enter/exit with a side, merge/split with the members and a group) and a pose sequence
+(``PRED.csv`` from ``artmotion pose predict``). Without events, entering and exiting are derived
+from the tracks: a track that starts (ends) after the first (before the last) frame of the file
+enters (exits) from the image border its box touches, or appears (vanishes) inside the image.
+
+Motion sentences come from each track's smoothed centre: the track is cut where its direction of
+motion changes (runs shorter than ``min_segment`` frames are absorbed by their neighbours) and each
+piece is told by its net displacement (``moves right``, ``moves left and upwards``, ``stays in
+place``). Interactions come from pairs of tracks that stay near each other (centre distance below
+``near`` box heights) with similar velocity for at least ``min_together`` frames: two tracks of the
+same class "walk together" (persons) or "move together"; otherwise one "interacts with" the other.
+The pose attribute "opens"/"closes" is read from the opening angle with hysteresis.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from artmotion.errors import InputError
+from artmotion.language.grammar import Triplet, join_subjects, noun_phrase, render
+
+
+@dataclass
+class DescribeParams:
+    smooth: int = 5  # moving-average window of the centre, frames
+    window: int = 10  # displacement window for the per-frame direction, frames
+    still: float = 0.02  # below this speed (box heights per frame) a track counts as still
+    diagonal: float = 0.5  # minor/major displacement ratio above which both directions are said
+    min_segment: int = 10  # shortest motion segment, frames
+    min_move: float = 0.5  # net displacement (box heights) below which a segment "stays in place"
+    near: float = 1.0  # centre distance (box heights) for two tracks to be together
+    same_velocity: float = 0.03  # velocity difference (box heights per frame) to move together
+    min_together: int = 25  # frames two tracks must be together to say so
+    max_gap: int = 5  # frames of not-together tolerated inside a together run
+    border: float = 0.03  # margin (fraction of the smaller image side, at least 8 px) to call a border
+
+
+# --------------------------------------------------------------------------------------------
+# classes
+
+
+def parse_classes(specs: list[str] | None, default: str = "person") -> tuple[str, dict[int, str]]:
+    """``["person", "3=cart"]`` -> ``("person", {3: "cart"})``; a bare name sets the default."""
+    per_track: dict[int, str] = {}
+    for spec in specs or []:
+        spec = spec.strip()
+        if "=" in spec:
+            tid, _, name = spec.partition("=")
+            try:
+                per_track[int(tid)] = _class_word(name)
+            except ValueError:
+                raise InputError(f"--class {spec!r}: expected NAME or ID=NAME") from None
+        else:
+            default = _class_word(spec)
+    return default, per_track
+
+
+def _class_word(name: str) -> str:
+    name = name.strip()
+    if not re.fullmatch(r"[A-Za-z][A-Za-z \-]*", name):
+        raise ValueError(name)
+    return name.lower()
+
+
+# --------------------------------------------------------------------------------------------
+# tracks
+
+
+@dataclass
+class Track:
+    tid: int
+    frames: np.ndarray  # contiguous frames from first to last
+    cx: np.ndarray  # centre, linearly interpolated over gaps
+    cy: np.ndarray
+    height: float  # median box height
+    first_box: np.ndarray  # x, y, w, h at the first and last observed frame
+    last_box: np.ndarray
+
+
+def tracks_from_mot(rows: np.ndarray) -> dict[int, Track]:
+    """Group an ``(N, >=6)`` MOT array by track id, interpolating the centre over gaps."""
+    rows = np.asarray(rows, dtype=float)
+    out: dict[int, Track] = {}
+    for tid in np.unique(rows[:, 1]).astype(int):
+        r = rows[rows[:, 1] == tid]
+        r = r[np.argsort(r[:, 0], kind="stable")]
+        f = r[:, 0].astype(int)
+        f, first = np.unique(f, return_index=True)  # duplicate frames: keep the first box
+        r = r[first]
+        cx, cy = r[:, 2] + r[:, 4] / 2, r[:, 3] + r[:, 5] / 2
+        frames = np.arange(f[0], f[-1] + 1)
+        out[int(tid)] = Track(
+            tid=int(tid),
+            frames=frames,
+            cx=np.interp(frames, f, cx),
+            cy=np.interp(frames, f, cy),
+            height=float(max(np.median(r[:, 5]), 1.0)),
+            first_box=r[0, 2:6].copy(),
+            last_box=r[-1, 2:6].copy(),
+        )
+    return out
+
+
+def _smooth(v: np.ndarray, k: int) -> np.ndarray:
+    if k <= 1 or len(v) < 3:
+        return v.copy()
+    k = min(k, len(v))
+    pad = np.pad(v, (k // 2, k - 1 - k // 2), mode="edge")
+    return np.convolve(pad, np.ones(k) / k, mode="valid")
+
+
+def direction_word(dx: float, dy: float, diagonal: float = 0.5) -> str:
+    """Image coordinates (y down) to ``left``/``right``/``upwards``/``downwards`` or a pair."""
+    h = "right" if dx > 0 else "left"
+    v = "downwards" if dy > 0 else "upwards"
+    ax, ay = abs(dx), abs(dy)
+    if ax >= ay:
+        return f"{h} and {v}" if ay > diagonal * ax else h
+    return f"{h} and {v}" if ax > diagonal * ay else v
+
+
+def _velocity(t: Track, p: DescribeParams) -> tuple[np.ndarray, np.ndarray]:
+    sx, sy = _smooth(t.cx, p.smooth), _smooth(t.cy, p.smooth)
+    n = len(sx)
+    w = max(1, min(p.window, n - 1)) if n > 1 else 1
+    idx = np.arange(n)
+    a = np.clip(idx - w // 2, 0, n - 1)
+    b = np.clip(a + w, 0, n - 1)
+    a = np.clip(b - w, 0, n - 1)
+    span = np.maximum(b - a, 1)
+    return (sx[b] - sx[a]) / span, (sy[b] - sy[a]) / span
+
+
+def motion_segments(t: Track, p: DescribeParams) -> list[tuple[int, int, str | None]]:
+    """Cut a track into pieces of constant direction: ``(first, last, adjective or None=still)``."""
+    n = len(t.frames)
+    if n < 2:
+        return [(int(t.frames[0]), int(t.frames[-1]), None)]
+    vx, vy = _velocity(t, p)
+    speed = np.hypot(vx, vy) / t.height
+    labels = [None if s < p.still else direction_word(x, y, p.diagonal) for s, x, y in zip(speed, vx, vy)]
+    # run-length encode, then absorb short runs into the longer neighbour
+    runs: list[list] = []
+    for i, lab in enumerate(labels):
+        if runs and runs[-1][2] == lab:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i, lab])
+    changed = True
+    while changed and len(runs) > 1:
+        changed = False
+        lengths = [r[1] - r[0] + 1 for r in runs]
+        k = int(np.argmin(lengths))
+        if lengths[k] < p.min_segment:
+            if k == 0:
+                j = 1
+            elif k == len(runs) - 1:
+                j = k - 1
+            else:
+                j = k - 1 if lengths[k - 1] >= lengths[k + 1] else k + 1
+            lo, hi = min(runs[k][0], runs[j][0]), max(runs[k][1], runs[j][1])
+            runs[j] = [lo, hi, runs[j][2]]
+            del runs[k]
+            merged: list[list] = []
+            for r in runs:
+                if merged and merged[-1][2] == r[2]:
+                    merged[-1][1] = r[1]
+                else:
+                    merged.append(r)
+            runs = merged
+            changed = True
+    out = []
+    for i0, i1, _ in runs:
+        dx, dy = t.cx[i1] - t.cx[i0], t.cy[i1] - t.cy[i0]
+        adj = None if math.hypot(dx, dy) < p.min_move * t.height else direction_word(dx, dy, p.diagonal)
+        if out and out[-1][2] == adj:  # re-labelled neighbours that now agree
+            out[-1] = (out[-1][0], int(t.frames[i1]), adj)
+        else:
+            out.append((int(t.frames[i0]), int(t.frames[i1]), adj))
+    return out
+
+
+def border_side(box: np.ndarray, size: tuple[float, float], p: DescribeParams) -> str:
+    """Which image border a box ``x, y, w, h`` touches, or ``inside``."""
+    W, H = size
+    x, y, w, h = box
+    margin = max(8.0, p.border * min(W, H))
+    d = {"left": x, "right": W - (x + w), "top": y, "bottom": H - (y + h)}
+    side = min(d, key=d.get)
+    return side if d[side] <= margin else "inside"
+
+
+def infer_image_size(rows: np.ndarray) -> tuple[float, float]:
+    """Image width and height guessed from the extent of the boxes."""
+    return float(np.max(rows[:, 2] + rows[:, 4])), float(np.max(rows[:, 3] + rows[:, 5]))
+
+
+def _together_runs(a: Track, b: Track, p: DescribeParams) -> list[tuple[int, int, bool]]:
+    f0, f1 = max(a.frames[0], b.frames[0]), min(a.frames[-1], b.frames[-1])
+    if f1 - f0 + 1 < p.min_together:
+        return []
+    ia = slice(int(f0 - a.frames[0]), int(f1 - a.frames[0]) + 1)
+    ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
+    h = 0.5 * (a.height + b.height)
+    dist = np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h
+    vax, vay = _velocity(a, p)
+    vbx, vby = _velocity(b, p)
+    dv = np.hypot(vax[ia] - vbx[ib], vay[ia] - vby[ib]) / h
+    moving = 0.5 * (np.hypot(vax[ia], vay[ia]) + np.hypot(vbx[ib], vby[ib])) / h >= p.still
+    ok = (dist < p.near) & (dv < p.same_velocity)
+    runs, start, gap = [], None, 0
+    for i, v in enumerate(ok):
+        if v:
+            if start is None:
+                start = i
+            gap, last = 0, i
+        elif start is not None:
+            gap += 1
+            if gap > p.max_gap:
+                runs.append((start, last))
+                start, gap = None, 0
+    if start is not None:
+        runs.append((start, last))
+    return [
+        (int(f0 + s), int(f0 + e), bool(np.mean(moving[s : e + 1]) > 0.5))
+        for s, e in runs
+        if e - s + 1 >= p.min_together
+    ]
+
+
+def _groups(walks: list[tuple[int, int, int, int]], overlap: float = 0.7):
+    """Join pairwise "together" runs ``(a, b, first, last)`` sharing a track and overlapping in time
+    (intersection over union >= ``overlap``) into groups; yield ``(members, (first, last))``."""
+    parent = list(range(len(walks)))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, (a1, b1, f1, l1) in enumerate(walks):
+        for j in range(i + 1, len(walks)):
+            a2, b2, f2, l2 = walks[j]
+            if not {a1, b1} & {a2, b2}:
+                continue
+            inter = min(l1, l2) - max(f1, f2) + 1
+            union = max(l1, l2) - min(f1, f2) + 1
+            if inter > 0 and inter / union >= overlap:
+                parent[find(i)] = find(j)
+    comps: dict[int, list[int]] = {}
+    for i in range(len(walks)):
+        comps.setdefault(find(i), []).append(i)
+    for idx in comps.values():
+        members = sorted({t for i in idx for t in walks[i][:2]})
+        first = max(walks[i][2] for i in idx)
+        last = min(walks[i][3] for i in idx)
+        if last - first < 1:
+            first, last = min(walks[i][2] for i in idx), max(walks[i][3] for i in idx)
+        yield members, (first, last)
+
+
+# --------------------------------------------------------------------------------------------
+# pose
+
+
+def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """Frames, angles and the chosen column of a ``PRED.csv`` (``image,<name>,<name>_std,...``).
+
+    ``column`` defaults to the first angle column whose name contains ``open``. Frames are the
+    last number in each image name when those are distinct and increasing, else the row number.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such file", path=path)
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", path=path) from None
+    if not rows or "image" not in [h.strip() for h in rows[0]]:
+        raise InputError("not a pose prediction CSV: no 'image' column in the header", path=path, line=1)
+    header = [h.strip() for h in rows[0]]
+    angles = [h for h in header if h != "image" and not h.endswith("_std")]
+    if column is None:
+        cands = [h for h in angles if "open" in h.lower()]
+        if not cands:
+            raise InputError(f"no opening-angle column (name containing 'open') among {angles}; use --pose-column", path=path, line=1)
+        column = cands[0]
+    elif column not in header:
+        raise InputError(f"no column {column!r} (columns: {', '.join(header)})", path=path, line=1)
+    ci, ii = header.index(column), header.index("image")
+    names, values = [], []
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row or not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"expected {len(header)} values, found {len(row)}", path=path, line=lineno)
+        try:
+            v = float(row[ci])
+        except ValueError:
+            raise InputError(f"non-numeric {column} {row[ci]!r}", path=path, line=lineno) from None
+        if not math.isfinite(v):
+            raise InputError(f"NaN or infinite {column}", path=path, line=lineno)
+        names.append(row[ii])
+        values.append(v)
+    if not values:
+        raise InputError("empty: no predictions", path=path)
+    nums = [re.findall(r"\d+", Path(n).stem) for n in names]
+    frames = np.arange(1, len(values) + 1)
+    if all(nums):
+        cand = np.array([int(n[-1]) for n in nums])
+        if np.all(np.diff(cand) > 0) and cand[0] >= 0:
+            frames = cand + (1 if cand[0] == 0 else 0)
+    return frames.astype(int), np.asarray(values), column
+
+
+def pose_changes(
+    frames: np.ndarray, angles: np.ndarray, open_above: float | None = None, close_below: float | None = None
+) -> list[tuple[int, str, float]]:
+    """``(frame, "opens"|"closes", angle)`` at each state change, with hysteresis.
+
+    The state becomes open when the angle rises to ``open_above`` and closed when it falls to
+    ``close_below``; in between it keeps its state. Defaults: 65% and 35% of the way between the
+    10th and 90th percentile of the angles. The initial state is not an event.
+    """
+    angles = np.asarray(angles, dtype=float)
+    lo, hi = np.percentile(angles, [10, 90])
+    if open_above is None or close_below is None:
+        if hi - lo < 1e-6:
+            return []
+        open_above = lo + 0.65 * (hi - lo) if open_above is None else open_above
+        close_below = lo + 0.35 * (hi - lo) if close_below is None else close_below
+    if close_below > open_above:
+        raise InputError(f"--close-below {close_below:g} is above --open-above {open_above:g}")
+    state, out = None, []
+    for f, a in zip(frames, angles):
+        new = state
+        if a >= open_above:
+            new = "open"
+        elif a <= close_below:
+            new = "closed"
+        if state is not None and new != state:
+            out.append((int(f), "opens" if new == "open" else "closes", float(a)))
+        state = new
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# all together
+
+
+def describe(
+    tracks: np.ndarray,
+    events: list[dict] | None = None,
+    *,
+    pose: tuple[np.ndarray, np.ndarray] | None = None,
+    classes: tuple[str, dict[int, str]] = ("person", {}),
+    pose_subject: str = "tool",
+    pose_track: int | None = None,
+    open_above: float | None = None,
+    close_below: float | None = None,
+    image_size: tuple[float, float] | None = None,
+    fps: float | None = None,
+    params: DescribeParams | None = None,
+) -> list[Triplet]:
+    """Triplets (with their sentences) for tracks, events and a pose sequence, ordered by frame."""
+    p = params or DescribeParams()
+    tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
+    default_cls, per_track = classes
+    cls_of = lambda tid: per_track.get(tid, default_cls)  # noqa: E731
+    subj = lambda tid, cap=True: noun_phrase(cls_of(tid), tid, capital=cap)  # noqa: E731
+    times = (lambda a, b: ((a - 1) / fps, (b - 1) / fps)) if fps else (lambda a, b: None)
+    out: list[Triplet] = []
+
+    def add(t: Triplet) -> None:
+        t.times = times(*t.frames)
+        render(t)
+        out.append(t)
+
+    table = tracks_from_mot(tracks) if len(tracks) else {}
+    if table:
+        size = image_size or infer_image_size(tracks)
+        first, last = int(tracks[:, 0].min()), int(tracks[:, 0].max())
+
+    # enter / exit / merge / split
+    if events is not None:
+        for ev in events:
+            kind, f, ids = ev["type"], int(ev["frame"]), [int(i) for i in ev["tracks"]]
+            span = (f, int(ev.get("end_frame", f)))
+            if kind in ("enter", "exit") and ids:
+                side = ev.get("side")
+                side = side if side in ("left", "right", "top", "bottom", "inside") else None
+                verb = {"enter": "enters", "exit": "exits"}[kind]
+                if side == "inside":
+                    verb = "appears" if kind == "enter" else "vanishes"
+                for tid in ids:
+                    add(Triplet(subj(tid), verb, side, None, span, [tid]))
+            elif kind in ("merge", "split") and ids:
+                names = [subj(t, i == 0) for i, t in enumerate(ids)]
+                t = Triplet(join_subjects(names), kind, None, None, span, ids)
+                if "group" in ev:
+                    t.object = f"group {ev['group']}"
+                add(t)
+            # other event types are not in the grammar: nothing is said about them
+    else:
+        for tid, t in table.items():
+            if t.frames[0] > first:
+                side = border_side(t.first_box, size, p)
+                add(Triplet(subj(tid), "appears" if side == "inside" else "enters", side, None,
+                            (int(t.frames[0]),) * 2, [tid]))
+            if t.frames[-1] < last:
+                side = border_side(t.last_box, size, p)
+                add(Triplet(subj(tid), "vanishes" if side == "inside" else "exits", side, None,
+                            (int(t.frames[-1]),) * 2, [tid]))
+
+    # motion of each track
+    for tid, t in table.items():
+        for a, b, adj in motion_segments(t, p):
+            if b - a + 1 < 2:
+                continue
+            add(Triplet(subj(tid), "stays" if adj is None else "moves", adj, None, (a, b), [tid]))
+
+    # interactions between pairs of tracks; co-moving pairs that overlap in time form groups
+    ids = sorted(table)
+    walks: list[tuple[int, int, int, int]] = []
+    for i, ta in enumerate(ids):
+        for tb in ids[i + 1 :]:
+            for a, b, moving in _together_runs(table[ta], table[tb], p):
+                if cls_of(ta) == cls_of(tb) and moving:
+                    walks.append((ta, tb, a, b))
+                else:
+                    add(Triplet(subj(ta), "interacts with", None, subj(tb, False), (a, b), [ta, tb]))
+    for members, (a, b) in _groups(walks):
+        dx = np.mean([table[m].cx[b - table[m].frames[0]] - table[m].cx[a - table[m].frames[0]] for m in members])
+        dy = np.mean([table[m].cy[b - table[m].frames[0]] - table[m].cy[a - table[m].frames[0]] for m in members])
+        h = np.mean([table[m].height for m in members])
+        adj = direction_word(dx, dy, p.diagonal) if math.hypot(dx, dy) >= p.min_move * h else None
+        verb = "walk together" if cls_of(members[0]) == "person" else "move together"
+        names = [subj(m, k == 0) for k, m in enumerate(members)]
+        add(Triplet(join_subjects(names), verb, adj, None, (a, b), list(members)))
+
+    # pose attribute
+    if pose is not None:
+        frames, angles = pose
+        for f, verb, _angle in pose_changes(frames, angles, open_above, close_below):
+            add(Triplet(noun_phrase(pose_subject, pose_track, capital=True), verb, None, None, (f, f),
+                        [] if pose_track is None else [pose_track]))
+
+    order = {"enters": 0, "appears": 0, "merge": 1, "split": 1}
+    out.sort(key=lambda t: (t.frames[0], order.get(t.verb, 2), t.tracks, t.frames[1]))
+    return out

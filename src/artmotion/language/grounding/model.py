@@ -1,0 +1,56 @@
+"""A trained compositional grounding model with file-level queries in both directions."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from artmotion.language.grounding.features import (
+    audio_feature,
+    read_image,
+    render_shape,
+    visual_features,
+)
+from artmotion.language.grounding.sparse import CompositionalSparse
+
+
+class Grounder:
+    """Speech -> colour, shape and an image; image -> speech features and the words they are nearest to.
+
+    ``fit`` takes the feature dictionary of :func:`artmotion.language.grounding.evaluate.load_features`.
+    """
+
+    def __init__(self, seed: int = 0):
+        self.seed = seed
+
+    def fit(self, F: dict, idx: np.ndarray | None = None) -> "Grounder":
+        idx = np.arange(len(F["colors"])) if idx is None else np.asarray(idx)
+        self.model_ = CompositionalSparse(seed=self.seed).fit(
+            [F["color"][idx], F["shape"][idx]], [a[idx] for a in F["audio_seg"]]
+        )
+        self.words_ = []
+        for seg, labels in zip(F["audio_seg"], (F["colors"][idx], F["shapes"][idx])):
+            names = np.unique(labels)
+            self.words_.append((names, np.array([seg[idx][labels == n].mean(axis=0) for n in names])))
+        return self
+
+    def speech_to_visual(self, first_word: np.ndarray, second_word: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Colour (RGB in [0, 1]) and shape descriptor generated from two word features."""
+        c, s = self.model_.audio_to_visual([np.atleast_2d(first_word), np.atleast_2d(second_word)])
+        return c[0], s[0]
+
+    def speech_files_to_image(self, first_wav: str | os.PathLike, second_wav: str | os.PathLike, size: int = 128):
+        """Rendered RGB image (contour from the generated descriptor, filled with the generated colour)."""
+        c, s = self.speech_to_visual(audio_feature(first_wav), audio_feature(second_wav))
+        return render_shape(s, c, size=size)
+
+    def image_to_speech(self, image: str | os.PathLike | np.ndarray) -> tuple[list[np.ndarray], list[str]]:
+        """Audio features generated for each word segment, and the nearest known word of each."""
+        img = read_image(image) if not isinstance(image, np.ndarray) else image
+        c, s = visual_features(img, where=None if isinstance(image, np.ndarray) else str(image))
+        segs = [g[0] for g in self.model_.visual_to_audio([c[None], s[None]])]
+        words = []
+        for g, (names, protos) in zip(segs, self.words_):
+            words.append(str(names[np.argmin(np.abs(protos - g).sum(axis=1))]))
+        return segs, words

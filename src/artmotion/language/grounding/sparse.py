@@ -1,0 +1,177 @@
+"""Paired and compositional sparse models linking visual and audio features (thesis 5.3).
+
+Paired model (Eq. 5.1–5.3): visual ``x`` and audio ``y`` share one sparse code ``alpha``,
+``x = U alpha`` and ``y = V alpha``. Both dictionaries are learned together as one dictionary on
+the concatenated, normalised features (scikit-learn's dictionary learning: l1 penalty ``lam`` on
+the codes, every atom ``[U; V]`` in the unit ball). Mapping speech to vision encodes ``y`` on
+``V`` alone (Eq. 5.3, lasso) and returns ``U alpha``; vision to speech is the mirror.
+
+Compositional model (Eq. 5.4–5.7): the visual features fall into concepts (colour, shape) and the
+speech into segments (words). A linking matrix ``H`` (a permutation) says which segment speaks of
+which concept; it is estimated by clustering each concept and each segment separately, scoring
+every (concept, segment) pair by the V-measure between their clusterings, and taking the Hungarian
+assignment of highest total V-measure. Then one paired model is learned per linked pair.
+
+Normalisation: each block (a concept, a segment, the whole utterance) is standardised per
+dimension with the training mean and deviation, then divided by ``sqrt(dim)`` so that every block
+has unit expected squared norm whatever its size.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from sklearn.cluster import KMeans
+from sklearn.decomposition import DictionaryLearning
+from sklearn.linear_model import lars_path_gram
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.metrics import silhouette_score, v_measure_score
+
+LAMBDA = 0.15
+
+
+class BlockScaler:
+    """Standardise a feature block and weigh it to unit expected squared norm."""
+
+    def fit(self, X: np.ndarray) -> "BlockScaler":
+        X = np.asarray(X, dtype=float)
+        self.mean_ = X.mean(axis=0)
+        sd = X.std(axis=0)
+        self.scale_ = np.where(sd > 1e-8 * (np.abs(self.mean_).max() + 1), sd, 1.0) * np.sqrt(X.shape[1])
+        return self
+
+    def transform(self, X: np.ndarray) -> np.ndarray:
+        return (np.asarray(X, dtype=float) - self.mean_) / self.scale_
+
+    def inverse(self, Z: np.ndarray) -> np.ndarray:
+        return np.asarray(Z, dtype=float) * self.scale_ + self.mean_
+
+
+class PairedSparse:
+    """Two dictionaries ``U`` (visual) and ``V`` (audio) coupled by shared l1-sparse codes."""
+
+    def __init__(self, n_atoms: int = 48, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):
+        self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
+
+    def fit(self, X: np.ndarray, Y: np.ndarray) -> "PairedSparse":
+        """Learn from visual ``X (N, dx)`` and audio ``Y (N, dy)`` of the same ``N`` examples."""
+        X, Y = np.atleast_2d(X), np.atleast_2d(Y)
+        if len(X) != len(Y) or len(X) < 2:
+            raise ValueError("need at least two paired examples")
+        self.sx_, self.sy_ = BlockScaler().fit(X), BlockScaler().fit(Y)
+        Z = np.hstack([self.sx_.transform(X), self.sy_.transform(Y)])
+        k = int(min(self.n_atoms, len(X)))
+        dl = DictionaryLearning(
+            n_components=k, alpha=self.lam, max_iter=self.max_iter, tol=1e-6,
+            fit_algorithm="cd", transform_algorithm="lasso_lars", random_state=self.seed,
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            dl.fit(Z)
+        D = dl.components_
+        self.dx_ = X.shape[1]
+        self.U_, self.V_ = D[:, : self.dx_].copy(), D[:, self.dx_ :].copy()  # atoms as rows
+        self.gram_u_, self.gram_v_ = self.U_ @ self.U_.T, self.V_ @ self.V_.T
+        return self
+
+    @staticmethod
+    def _encode(Z: np.ndarray, D: np.ndarray, lam: float, gram: np.ndarray) -> np.ndarray:
+        """Eq. 5.3: ``argmin_a 0.5 ||z - a D||^2 + lam ||a||_1`` for every row ``z`` (exact, LARS)."""
+        nf = D.shape[1]
+        out = np.zeros((len(Z), len(D)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            for i, z in enumerate(Z):
+                _, _, coefs = lars_path_gram(Xy=D @ z, Gram=gram, n_samples=nf, alpha_min=lam / nf, method="lasso")
+                out[i] = coefs[:, -1]
+        return out
+
+    def codes_from_audio(self, Y: np.ndarray) -> np.ndarray:
+        return self._encode(self.sy_.transform(np.atleast_2d(Y)), self.V_, self.lam, self.gram_v_)
+
+    def codes_from_visual(self, X: np.ndarray) -> np.ndarray:
+        return self._encode(self.sx_.transform(np.atleast_2d(X)), self.U_, self.lam, self.gram_u_)
+
+    def audio_to_visual(self, Y: np.ndarray) -> np.ndarray:
+        """``phi^-1``: visual features generated from audio features."""
+        return self.sx_.inverse(self.codes_from_audio(Y) @ self.U_)
+
+    def visual_to_audio(self, X: np.ndarray) -> np.ndarray:
+        """``phi``: audio features generated from visual features."""
+        return self.sy_.inverse(self.codes_from_visual(X) @ self.V_)
+
+
+# ---------------------------------------------------------------------------------------------
+# linking matrix H
+
+
+def cluster_labels(X: np.ndarray, k: int | None = None, k_range=(2, 10), seed: int = 0) -> np.ndarray:
+    """K-means labels of standardised ``X``; ``k`` by the best silhouette when not given."""
+    Z = BlockScaler().fit(X).transform(X)
+    ks = [k] if k else list(range(k_range[0], min(k_range[1], len(Z) - 1) + 1))
+    best, best_s = None, -np.inf
+    for kk in ks:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            lab = KMeans(n_clusters=kk, n_init=4, random_state=seed).fit_predict(Z)
+        if len(ks) == 1:
+            return lab
+        if len(np.unique(lab)) < 2:
+            continue
+        s = silhouette_score(Z, lab)
+        if s > best_s:
+            best, best_s = lab, s
+    return best if best is not None else np.zeros(len(Z), int)
+
+
+def vmeasure_matrix(visual: list[np.ndarray], audio: list[np.ndarray], seed: int = 0) -> np.ndarray:
+    """``M[i, j]`` = V-measure between the clusterings of visual concept ``i`` and audio segment ``j``."""
+    lv = [cluster_labels(X, seed=seed) for X in visual]
+    la = [cluster_labels(Y, seed=seed) for Y in audio]
+    return np.array([[v_measure_score(a, b) for b in la] for a in lv])
+
+
+def estimate_linking(visual: list[np.ndarray], audio: list[np.ndarray], seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Linking matrix ``H`` (``H[i, j] = 1``: visual concept ``i`` is spoken in segment ``j``) and
+    the V-measure matrix it was chosen from (Hungarian assignment of maximal total V-measure)."""
+    if len(visual) != len(audio):
+        raise ValueError("as many visual concepts as audio segments are needed")
+    M = vmeasure_matrix(visual, audio, seed=seed)
+    rows, cols = linear_sum_assignment(-M)
+    H = np.zeros_like(M, dtype=int)
+    H[rows, cols] = 1
+    return H, M
+
+
+class CompositionalSparse:
+    """One paired sparse model per (visual concept, audio segment) pair linked by ``H``."""
+
+    def __init__(self, n_atoms: int = 24, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):
+        self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
+
+    def fit(self, visual: list[np.ndarray], audio: list[np.ndarray], H: np.ndarray | None = None) -> "CompositionalSparse":
+        """Learn ``H`` (unless given) and the paired model of every linked pair."""
+        if H is None:
+            H, M = estimate_linking(visual, audio, seed=self.seed)
+        else:
+            M = None
+        self.H_, self.vmeasure_ = np.asarray(H, int), M
+        self.link_ = [int(np.argmax(self.H_[i])) for i in range(len(visual))]  # concept -> segment
+        self.models_ = [
+            PairedSparse(self.n_atoms, self.lam, self.max_iter, self.seed).fit(visual[i], audio[j])
+            for i, j in enumerate(self.link_)
+        ]
+        return self
+
+    def audio_to_visual(self, audio: list[np.ndarray]) -> list[np.ndarray]:
+        """Visual concept features generated from the audio segments (Eq. 5.6 then ``H``)."""
+        return [m.audio_to_visual(audio[j]) for m, j in zip(self.models_, self.link_)]
+
+    def visual_to_audio(self, visual: list[np.ndarray]) -> list[np.ndarray]:
+        """Audio segment features generated from the visual concepts, in segment order."""
+        out: list = [None] * len(self.link_)
+        for i, (m, j) in enumerate(zip(self.models_, self.link_)):
+            out[j] = m.visual_to_audio(visual[i])
+        return out

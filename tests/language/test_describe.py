@@ -1,0 +1,204 @@
+"""The sentence grammar on hand-made tracks, events and pose sequences."""
+
+import json
+
+import numpy as np
+import pytest
+
+from artmotion.errors import InputError
+from artmotion.io import write_events, write_mot
+from artmotion.language.describe import (
+    describe,
+    direction_word,
+    parse_classes,
+    pose_changes,
+    read_pose,
+)
+from artmotion.language.grammar import Triplet, render
+
+W, H = 640, 480
+
+
+def box_rows(tid, frames, xs, ys, w=40, h=100):
+    return [[f, tid, x, y, w, h, 1, -1, -1, -1] for f, x, y in zip(frames, xs, ys)]
+
+
+def scene():
+    """Track 1 enters from the left and walks right, leaving at the right border; tracks 2 and 3
+    walk together upwards; track 4 stands still; all within a 640x480 image, frames 1..100."""
+    rows = []
+    f = np.arange(10, 91)
+    rows += box_rows(1, f, np.linspace(0, W - 40, len(f)), np.full(len(f), 200))
+    f = np.arange(1, 101)
+    rows += box_rows(2, f, np.full(100, 100), np.linspace(370, 10, 100))
+    rows += box_rows(3, f, np.full(100, 150), np.linspace(375, 15, 100))
+    rows += box_rows(4, f, np.full(100, 400), np.full(100, 300))
+    return np.array(rows, float)
+
+
+def sentences(triplets):
+    return [t.sentence for t in triplets]
+
+
+def test_enter_left_move_right_exit_right_derived_from_tracks():
+    out = describe(scene(), image_size=(W, H))
+    s = sentences(out)
+    assert "Person 1 enters from the left at frame 10." in s
+    assert "Person 1 moves right from frame 10 to frame 90." in s
+    assert "Person 1 exits to the right at frame 90." in s
+    assert "Person 4 stays in place from frame 1 to frame 100." in s
+    # tracks present from the first frame to the last neither enter nor exit
+    assert not any(t.verb in ("enters", "exits", "appears", "vanishes") and t.tracks == [4] for t in out)
+    # every sentence names its tracks
+    for t in out:
+        assert t.tracks and all(f"erson {i}" in t.sentence for i in t.tracks)
+
+
+def test_walk_together_and_directions():
+    s = sentences(describe(scene(), image_size=(W, H)))
+    assert "Person 2 and person 3 walk together upwards from frame 1 to frame 100." in s
+    assert "Person 2 moves upwards from frame 1 to frame 100." in s
+    # the still person never walks with anybody
+    assert not any("person 4" in x.lower() and "together" in x for x in s)
+
+
+def test_image_size_inferred_from_extents():
+    s = sentences(describe(scene()))
+    assert "Person 1 exits to the right at frame 90." in s
+
+
+def test_direction_changes_split_the_motion():
+    f = np.arange(1, 81)
+    x = np.where(f <= 40, 100 + 5 * f, 300 - 5 * (f - 40))
+    rows = np.array(box_rows(7, f, x, np.full(80, 200)), float)
+    s = sentences(describe(rows, image_size=(W, H)))
+    moves = [x for x in s if "moves" in x]
+    assert len(moves) == 2, s
+    assert moves[0].startswith("Person 7 moves right from frame 1 to frame")
+    assert moves[1].startswith("Person 7 moves left from frame")
+
+
+def test_direction_words():
+    assert direction_word(10, 1) == "right"
+    assert direction_word(-10, 0) == "left"
+    assert direction_word(0, 10) == "downwards"
+    assert direction_word(1, -10) == "upwards"
+    assert direction_word(10, 8) == "right and downwards"
+
+
+def test_events_merge_split_and_sides():
+    events = [
+        {"type": "enter", "frame": 10, "tracks": [1], "side": "left"},
+        {"type": "merge", "frame": 40, "tracks": [2, 3], "group": 9},
+        {"type": "split", "frame": 60, "tracks": [2, 3], "group": 9},
+        {"type": "exit", "frame": 90, "tracks": [1], "side": "right"},
+        {"type": "enter", "frame": 5, "tracks": [4], "side": "inside"},
+        {"type": "teleport", "frame": 7, "tracks": [4]},
+    ]
+    out = describe(scene(), events, classes=parse_classes(["person", "4=cart"]))
+    s = sentences(out)
+    assert "Person 1 enters from the left at frame 10." in s
+    assert "Person 2 and person 3 merge into one group at frame 40." in s
+    assert "Person 2 and person 3 split from their group at frame 60." in s
+    assert "Person 1 exits to the right at frame 90." in s
+    assert "Cart 4 appears inside the image at frame 5." in s
+    assert not any("teleport" in x for x in s)
+    merge = next(t for t in out if t.verb == "merge")
+    assert merge.tracks == [2, 3] and merge.object == "group 9" and merge.frames == (40, 40)
+    # sentences are in time order
+    assert [t.frames[0] for t in out] == sorted(t.frames[0] for t in out)
+
+
+def test_interaction_between_classes():
+    f = np.arange(1, 61)
+    rows = box_rows(1, f, 100 + 3 * f, np.full(60, 200)) + box_rows(2, f, 130 + 3 * f, np.full(60, 220), w=60, h=80)
+    out = describe(np.array(rows, float), classes=parse_classes(["2=cart"]), image_size=(W, H))
+    assert "Person 1 interacts with cart 2 from frame 1 to frame 60." in sentences(out)
+
+
+def test_times_with_fps():
+    out = describe(scene(), image_size=(W, H), fps=10)
+    t = next(t for t in out if t.verb == "enters")
+    assert t.sentence == "Person 1 enters from the left at 0.9 s (frame 10)."
+    assert t.to_dict()["times"] == [0.9, 0.9]
+
+
+def test_grammar_rejects_words_outside_it():
+    with pytest.raises(ValueError):
+        render(Triplet("Person 1", "flies", None))
+    with pytest.raises(ValueError):
+        render(Triplet("Person 1", "moves", "sideways"))
+
+
+def test_pose_hysteresis(tmp_path):
+    ang = [5, 6, 20, 31, 35, 28, 22, 28, 33, 14, 9, 12, 16, 8]
+    frames = np.arange(1, len(ang) + 1)
+    ch = pose_changes(frames, ang, open_above=30, close_below=10)
+    # 22 and 28 inside the band do not close it; 14 and 12/16 do not reopen it
+    assert [(f, v) for f, v, _ in ch] == [(4, "opens"), (11, "closes")]
+    p = tmp_path / "PRED.csv"
+    p.write_text("image,tip_open,tip_open_std,roll,roll_std\n" + "".join(
+        f"frame_{i:04d}.png,{a},1.0,0,0\n" for i, a in zip(frames, ang)))
+    fr, a, col = read_pose(p)
+    assert col == "tip_open" and list(fr) == list(frames)
+    out = describe(np.zeros((0, 10)), pose=(fr, a), open_above=30, close_below=10)
+    assert sentences(out) == ["Tool opens at frame 4.", "Tool closes at frame 11."]
+
+
+def test_cli_describe(tmp_path, run_cli):
+    res = tmp_path / "results.txt"
+    ev = tmp_path / "events.jsonl"
+    write_mot(res, scene())
+    write_events(ev, [{"type": "merge", "frame": 40, "tracks": [2, 3], "group": 9}])
+    code, out, err = run_cli("describe", res, "--events", ev, "--size", "640x480")
+    assert code == 0, err
+    lines = out.strip().splitlines()
+    assert "Person 2 and person 3 merge into one group at frame 40." in lines
+    assert all(l.endswith(".") for l in lines)
+    code, out, err = run_cli("describe", res, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert {"subject", "verb", "adjective", "object", "frames", "tracks", "sentence"} <= set(data[0])
+    enter = [d for d in data if d["verb"] == "enters"]
+    assert enter and enter[0]["tracks"] == [1] and enter[0]["adjective"] == "left"
+
+
+def test_cli_describe_bad_input(tmp_path, run_cli):
+    code, out, err = run_cli("describe", tmp_path / "missing.txt")
+    assert code == 2 and "missing.txt" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1,1,10,10,20,20,1,-1,-1,-1\n2,1,ten,10,20,20,1,-1,-1,-1\n")
+    code, out, err = run_cli("describe", bad)
+    assert code == 2 and "bad.txt:2" in err
+    res = tmp_path / "r.txt"
+    write_mot(res, scene())
+    ev = tmp_path / "ev.jsonl"
+    ev.write_text('{"type": "enter", "frame": 3}\n')
+    code, out, err = run_cli("describe", res, "--events", ev)
+    assert code == 2 and "ev.jsonl:1" in err
+    pose = tmp_path / "PRED.csv"
+    pose.write_text("image,roll,roll_std\na.png,1,0\n")
+    code, out, err = run_cli("describe", res, "--pose", pose)
+    assert code == 2 and "PRED.csv" in err and "open" in err
+    code, out, err = run_cli("describe", res, "--size", "640by480")
+    assert code == 2 and "--size" in err
+    code, out, err = run_cli("describe", res, "--class", "3=")
+    assert code == 2 and "--class" in err
+
+
+def test_parse_classes():
+    assert parse_classes(["tool", "2=cart"]) == ("tool", {2: "cart"})
+    with pytest.raises(InputError):
+        parse_classes(["x=cart"])
+
+
+def test_three_walking_together_form_one_group():
+    f = np.arange(1, 61)
+    rows = []
+    for tid, dy in ((1, 0), (2, 30), (3, 60)):
+        rows += box_rows(tid, f, 100 + 4 * f, np.full(60, 150 + dy))
+    out = describe(np.array(rows, float), image_size=(W, H))
+    together = [t for t in out if t.verb == "walk together"]
+    assert len(together) == 1, sentences(out)
+    assert together[0].tracks == [1, 2, 3]
+    assert together[0].sentence == "Person 1, person 2 and person 3 walk together right from frame 1 to frame 60."

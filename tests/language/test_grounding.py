@@ -1,0 +1,176 @@
+"""End to end: dataset, features, models and evaluation; bad input through the CLI."""
+
+import csv
+import json
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+import soundfile as sf
+
+from artmotion.language.grounding import dataset as ds
+
+from .test_features import draw, tone
+
+HAVE_ESPEAK = shutil.which("espeak-ng") is not None or shutil.which("espeak") is not None
+needs_espeak = pytest.mark.skipif(not HAVE_ESPEAK, reason="espeak-ng not installed (make system-deps installs it)")
+
+SMALL = {  # 4 colours x 4 shapes, 3 examples each
+    "circle": (3, 3, 3, 3),
+    "rectangle": (3, 3, 3, 3),
+    "square": (3, 3, 3, 3),
+    "triangle": (3, 3, 3, 3),
+}
+
+
+def test_table_5_2_counts():
+    c = ds.counts()
+    assert sum(n for *_, n in c) == 156
+    per_colour = {col: sum(n for cc, _, n in c if cc == col) for col in ds.COLORS}
+    assert per_colour == {"blue": 46, "green": 32, "red": 40, "yellow": 38}
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    if not HAVE_ESPEAK:
+        pytest.skip("espeak-ng not installed (make system-deps installs it)")
+    out = tmp_path_factory.mktemp("grounding") / "small"
+    ds.make_dataset(out, seed=3, table=SMALL)
+    return out
+
+
+@needs_espeak
+def test_dataset_is_deterministic(tmp_path):
+    tiny = {"circle": (1, 0, 1, 0)}
+    a, b = tmp_path / "a", tmp_path / "b"
+    ds.make_dataset(a, seed=5, table=tiny)
+    ds.make_dataset(b, seed=5, table=tiny)
+    assert (a / "index.csv").read_bytes() == (b / "index.csv").read_bytes()
+    rows = list(csv.DictReader(open(a / "index.csv")))
+    assert len(rows) == 2 and {r["color"] for r in rows} == {"blue", "red"}
+    for r in rows:
+        for col in ("image", "speech", "speech_color", "speech_shape"):
+            assert (a / r[col]).read_bytes() == (b / r[col]).read_bytes(), col
+        y, sr = sf.read(a / r["speech"])
+        assert len(y) > 0.2 * sr
+
+
+@needs_espeak
+def test_end_to_end_cli(small_dataset, tmp_path, run_cli):
+    out = tmp_path / "eval"
+    code, stdout, err = run_cli("grounding", "eval", small_dataset, "--out", out, "--json")
+    assert code == 0, err
+    res = json.loads(stdout)
+    assert set(res) == {"compositional", "paired"}
+    for model in res.values():
+        for part in ("retrieval", "unseen"):
+            assert 0 <= model[part]["color"] <= 1 and 0 <= model[part]["shape"] <= 1
+    comp = res["compositional"]
+    assert comp["retrieval"]["color"] >= 0.9 and comp["retrieval"]["shape"] >= 0.8, res
+    assert comp["unseen"]["color"] >= 0.8 and comp["unseen"]["shape"] >= 0.6, res
+    # the thesis's claim: words composed anew are understood by the compositional model only
+    assert comp["unseen"]["color"] > res["paired"]["unseen"]["color"], res
+    report = json.loads((out / "report.json").read_text())
+    assert report["linking"]["H"] == [[1, 0], [0, 1]]  # colour is the first word, shape the second
+    assert report["n_examples"] == 48
+    for png in report["figures"]:
+        img = cv2.imread(str(out / png))
+        assert img is not None and img.size > 0
+    assert "unseen_confusion.png" in report["figures"] and "unseen_renders.png" in report["figures"]
+
+
+@needs_espeak
+def test_grounder_both_directions(small_dataset):
+    from artmotion.language.grounding.evaluate import load_features
+    from artmotion.language.grounding.model import Grounder
+
+    F = load_features(small_dataset)
+    rows = list(csv.DictReader(open(small_dataset / "index.csv")))
+    g = Grounder().fit(F, np.arange(1, len(rows)))
+    r = rows[0]
+    img = g.speech_files_to_image(small_dataset / r["speech_color"], small_dataset / r["speech_shape"], size=64)
+    assert img.shape == (64, 64, 3)
+    _, words = g.image_to_speech(small_dataset / r["image"])
+    assert words[0] == r["color"]
+
+
+def _write_index(folder, rows):
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "index.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=ds.INDEX_COLUMNS[:7])
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _row(i, **kw):
+    r = dict(id=f"{i:03d}", image=f"images/{i}.png", speech=f"speech/{i}_full.wav",
+             speech_color=f"speech/{i}_color.wav", speech_shape=f"speech/{i}_shape.wav", color="red", shape="square")
+    r.update(kw)
+    return r
+
+
+def _good_files(folder, i, sr=16000):
+    (folder / "images").mkdir(parents=True, exist_ok=True)
+    (folder / "speech").mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(folder / f"images/{i}.png"), draw("square", 10, 40))
+    for part in ("full", "color", "shape"):
+        sf.write(folder / f"speech/{i}_{part}.wav", tone(sr), sr)
+
+
+def _one_line_error(code, err, *needles):
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    for n in needles:
+        assert n in err, (n, err)
+
+
+def test_eval_bad_input(tmp_path, run_cli):
+    code, _, err = run_cli("grounding", "eval", tmp_path / "nothing")
+    _one_line_error(code, err, "index.csv")
+
+    d = tmp_path / "missing"
+    _write_index(d, [_row(0)])
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "images/0.png", "no such file")
+
+    d = tmp_path / "notaudio"
+    _good_files(d, 0)
+    (d / "speech/0_color.wav").write_text("hello, I am text")
+    _write_index(d, [_row(0)])
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "0_color.wav", "not a readable audio")
+
+    d = tmp_path / "silent"
+    _good_files(d, 0)
+    sf.write(d / "speech/0_shape.wav", np.zeros(8000, np.float32), 16000)
+    _write_index(d, [_row(0)])
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "0_shape.wav", "silent")
+
+    d = tmp_path / "noshape"
+    _good_files(d, 0)
+    cv2.imwrite(str(d / "images/0.png"), ds.table_background(np.random.default_rng(0), 240, 320).astype(np.uint8))
+    _write_index(d, [_row(0)])
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "images/0.png", "no shape found")
+
+    d = tmp_path / "badindex"
+    d.mkdir()
+    (d / "index.csv").write_text("id,image\n0,a.png\n")
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "index.csv:1", "lacks columns")
+
+    d = tmp_path / "toofew"
+    for i in range(3):
+        _good_files(d, i)
+    _write_index(d, [_row(i) for i in range(3)])
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "too few examples (3)")
+
+
+def test_dataset_without_espeak(tmp_path, run_cli, monkeypatch):
+    monkeypatch.setattr(ds.shutil, "which", lambda name: None)
+    code, _, err = run_cli("grounding", "dataset", tmp_path / "d")
+    _one_line_error(code, err, "espeak-ng is not installed")
+    assert not (tmp_path / "d" / "index.csv").exists()

@@ -45,10 +45,13 @@ test: install
 	$(PY) -m pytest -q
 
 bench: install
-	$(PIP) install -q -e '.[dev,bench]'
-	-$(PIP) uninstall -y -q opencv-python
-	$(PIP) install -q --force-reinstall --no-deps $(CONTRIB_CV)
+	$(PIP) install -q --no-deps trackers==2.6.1 supervision==0.31.2 'pydeprecate>=0.9,<0.14' defusedxml==0.7.1
+	$(PY) -c "import cv2; cv2.HOGDescriptor()"
 	$(PY) benchmarks/tracking.py
+	$(PY) benchmarks/pose.py
+	$(PY) benchmarks/articulation.py
+	$(PY) benchmarks/language.py
+	$(PY) benchmarks/app.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

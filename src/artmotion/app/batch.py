@@ -99,9 +99,14 @@ def run_batch(
     workers: int = 1,
     scheduler: str | None = None,
     force: bool = False,
+    processes: bool = True,
     on_progress: Callable[[ItemOutcome, int, int], None] | None = None,
 ) -> BatchReport:
-    """Run :func:`artmotion.app.pipeline.run_pipeline` on every item of ``root`` on Dask."""
+    """Run :func:`artmotion.app.pipeline.run_pipeline` on every item of ``root`` on Dask.
+
+    ``processes=False`` runs the local workers as threads of this process (cheaper to start; for
+    tests and small archives).
+    """
     from dask.distributed import Client, LocalCluster, as_completed
 
     from artmotion.app.pipeline import is_finished
@@ -129,7 +134,7 @@ def run_batch(
             except (OSError, TimeoutError) as exc:
                 raise InputError(f"cannot reach Dask scheduler: {exc}", path=scheduler) from None
         else:
-            cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
+            cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
                                    dashboard_address=None, silence_logs=40)
             client = Client(cluster)
         try:

@@ -57,7 +57,7 @@ def track_summary(tracks: np.ndarray) -> list[dict]:
 def describe_run(tracks, events, width, height, fps, object_class: str = "person") -> list[dict]:
     """Sentences of one run (:func:`artmotion.language.describe`) as flat dicts for the index:
     ``sentence, subject`` (the class word), ``verb, adjective, object, tracks, frame_start, frame_end``."""
-    from artmotion.language import describe
+    from artmotion.language.describe import describe
 
     out = []
     for t in describe(tracks, events, classes=(object_class, {}), image_size=(width, height), fps=fps):

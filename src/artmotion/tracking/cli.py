@@ -5,5 +5,76 @@ from __future__ import annotations
 import typer
 
 
+def eval_command(
+    gt: str = typer.Argument(..., metavar="GT.txt", help="Ground truth, MOTChallenge text (rows with conf 0 are ignored)."),
+    results: str = typer.Argument(..., metavar="RESULTS.txt", help="Tracking results, MOTChallenge text."),
+    json_out: bool = typer.Option(False, "--json", help="Print every score as JSON instead of a table."),
+    iou: float = typer.Option(0.5, "--iou", help="IoU a match needs for CLEAR MOT and IDF1 (HOTA sweeps 0.05..0.95)."),
+) -> None:
+    """Score tracking results: MOTA, MOTP, IDF1, HOTA, MT/PT/ML, FM, IDS, FP, FN (MOT15 conventions)."""
+    import json
+
+    from artmotion.tracking.metrics import evaluate, format_table
+
+    scores = evaluate(gt, results, iou_threshold=iou)
+    if json_out:
+        typer.echo(json.dumps(scores, indent=2))
+    else:
+        typer.echo(format_table(scores, gt=gt, results=results, iou_threshold=iou))
+
+
+def track_command(
+    source: str = typer.Argument(..., metavar="SOURCE",
+                                 help="MOTChallenge folder (seqinfo.ini), video file, or folder of images."),
+    det: str = typer.Option(None, "--det", metavar="DET.txt",
+                            help="Detections, MOTChallenge text (default: SOURCE/det/det.txt, else the built-in HOG detector)."),
+    out: str = typer.Option(None, "--out", metavar="RESULTS.txt", help="Write the tracks (MOTChallenge text)."),
+    events: str = typer.Option(None, "--events", metavar="EVENTS.jsonl",
+                               help="Write enter/exit/merge/split events (JSON lines)."),
+    video: str = typer.Option(None, "--video", metavar="ANNOTATED.mp4", help="Write an annotated video."),
+    experts: str = typer.Option("det,klt,blob,motion,flow", "--experts",
+                                help="Comma-separated tracking experts to fuse."),
+    online: bool = typer.Option(False, "--online", help="Causal results only (no second, offline pass)."),
+    progress: bool = typer.Option(None, "--progress/--no-progress",
+                                  help="Progress bar on stderr (default: when stderr is a terminal)."),
+) -> None:
+    """Track people through occlusions (Product of Tracking Experts + group nodes)."""
+    import sys
+
+    from artmotion.io import write_events, write_mot
+    from artmotion.tracking import track
+
+    from pathlib import Path
+
+    from artmotion.errors import InputError
+
+    for path in (out, events, video):
+        if path and Path(path).is_dir():
+            raise InputError("is a folder; give a file name", path=path)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    res = track(source, det=det, experts=experts, online=online, progress=progress, video=video)
+    if out:
+        write_mot(out, res.tracks)
+    if events:
+        write_events(events, res.events)
+    counts: dict[str, int] = {}
+    for ev in res.events:
+        counts[ev["type"]] = counts.get(ev["type"], 0) + 1
+    seq = res.sequence
+    kinds = ", ".join(f"{counts[k]} {k}" for k in ("enter", "exit", "merge", "split") if k in counts)
+    typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height} @ {seq.fps:g} fps, "
+               f"detections: {res.detector}, experts: {','.join(res.experts)}"
+               f"{' (online)' if online else ''}")
+    typer.echo(f"{res.num_tracks} tracks, {len(res.tracks)} boxes, {len(res.events)} events"
+               f"{' (' + kinds + ')' if kinds else ''}")
+    typer.echo(f"{res.fps:.1f} frames/s ({res.seconds:.2f} s)")
+    for what, path in (("tracks", out), ("events", events), ("video", video)):
+        if path:
+            typer.echo(f"{what}: {path}")
+
+
 def register(app: typer.Typer) -> None:
     """Add this capability's commands to the root artmotion app."""
+    app.command("eval")(eval_command)
+    app.command("track")(track_command)

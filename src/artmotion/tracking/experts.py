@@ -1,0 +1,579 @@
+"""Tracking experts of the Product of Tracking Experts (thesis Sec. 2.4).
+
+Every expert maps ``(frame, previous frame, entity)`` to a Gaussian belief over the entity's box
+centre — a :class:`Gaussian` with ``mean`` (2,) and ``cov`` (2, 2) in full-image pixels — or
+``None`` when it has no opinion. Experts that only produce a box are turned into a Gaussian with
+Eq. 2.9 (:func:`box_gaussian`: centre as mean, ``diag(w, h) / 6`` as covariance).
+
+Experts are pluggable: subclass :class:`Expert`, give it a ``name`` and decorate it with
+:func:`register_expert`; :func:`make_experts` builds them by name. Nothing else needs to change.
+
+A :class:`Frame` carries what experts share in one time step (the image, a downscaled grey image,
+dense flow and foreground mask computed lazily and once, the detections of the frame) so that
+experts over many entities cost little.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, ClassVar
+
+import cv2
+import numpy as np
+
+from artmotion.filters import KalmanFilter, constant_velocity
+from artmotion.geometry import box_area, box_center, intersection, iou
+
+__all__ = [
+    "BlobExpert",
+    "DetectionExpert",
+    "EXPERTS",
+    "Entity",
+    "Expert",
+    "FlowExpert",
+    "Frame",
+    "Gaussian",
+    "KLTExpert",
+    "MotionExpert",
+    "box_gaussian",
+    "make_experts",
+    "register_expert",
+]
+
+
+@dataclass
+class Gaussian:
+    """A Gaussian belief over a 2-D box centre (pixels)."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+
+    def __post_init__(self):
+        self.mean = np.asarray(self.mean, dtype=float).reshape(2)
+        self.cov = np.asarray(self.cov, dtype=float).reshape(2, 2)
+
+
+def box_gaussian(box, scale: float = 1.0) -> Gaussian:
+    """Eq. 2.9: a box ``[x, y, w, h]`` as ``N(centre, diag(w, h) / 6)`` (times ``scale``)."""
+    box = np.asarray(box, dtype=float)
+    return Gaussian(box_center(box), np.diag([max(box[2], 1e-3), max(box[3], 1e-3)]) / 6.0 * scale)
+
+
+# --------------------------------------------------------------------------------------------
+# Shared per-frame data
+# --------------------------------------------------------------------------------------------
+
+
+class Frame:
+    """One time step as the experts see it.
+
+    ``image`` is the BGR frame, ``number`` its 1-based index, ``detections`` an ``(N, 5)`` array
+    ``x, y, w, h, score``. Derived images are computed once, on demand, at ``scale`` (a
+    downscaled copy keeps dense flow, KLT and background subtraction cheap); results are always
+    returned in full-image pixels.
+    """
+
+    def __init__(self, number: int, image: np.ndarray, detections=None, scale: float = 1.0,
+                 shared: dict | None = None):
+        self.number = number
+        self.image = image
+        self.height, self.width = image.shape[:2]
+        self.scale = float(scale)
+        self.detections = (np.zeros((0, 5)) if detections is None
+                           else np.asarray(detections, dtype=float).reshape(-1, 5))
+        #: state shared across frames (background model, flow engine), owned by the tracker
+        self.shared = {} if shared is None else shared
+        self._cache: dict = {}
+
+    def cached(self, key: str, fn: Callable[[], object]):
+        if key not in self._cache:
+            self._cache[key] = fn()
+        return self._cache[key]
+
+    def drop_image(self) -> None:
+        """Forget the full-resolution image (keeps the small derived ones)."""
+        self.image = None
+
+    @property
+    def small(self) -> np.ndarray:
+        """Downscaled BGR image."""
+        def make():
+            if self.scale == 1.0:
+                return self.image
+            return cv2.resize(self.image, None, fx=self.scale, fy=self.scale, interpolation=cv2.INTER_AREA)
+        return self.cached("small", make)
+
+    @property
+    def grey(self) -> np.ndarray:
+        """Downscaled grey image."""
+        return self.cached("grey", lambda: cv2.cvtColor(self.small, cv2.COLOR_BGR2GRAY))
+
+    def to_small(self, box) -> np.ndarray:
+        return np.asarray(box, dtype=float) * self.scale
+
+    def to_full(self, box) -> np.ndarray:
+        return np.asarray(box, dtype=float) / self.scale
+
+
+@dataclass
+class Entity:
+    """What an expert knows about a tracked entity at time ``t - 1``.
+
+    ``box`` is the entity's box on the previous frame, ``kf`` its constant-velocity Kalman filter
+    on the box centre (state ``[x, vx, y, vy]``), ``centres`` its recent fused centres (for the
+    acceleration estimate of Eq. 2.10), ``detection`` the detection ``[x, y, w, h, score]``
+    assigned to it on the current frame (or ``None``) and ``scratch`` a place where experts may
+    keep per-entity state (e.g. KLT points).
+    """
+
+    box: np.ndarray
+    kf: KalmanFilter | None = None
+    centres: list = field(default_factory=list)
+    detection: np.ndarray | None = None
+    scratch: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------------------------
+# Registry
+# --------------------------------------------------------------------------------------------
+
+EXPERTS: dict[str, type["Expert"]] = {}
+
+
+def register_expert(cls: type["Expert"]) -> type["Expert"]:
+    """Class decorator: make an expert available by its ``name`` to :func:`make_experts`."""
+    if not getattr(cls, "name", None):
+        raise ValueError("an expert needs a name")
+    EXPERTS[cls.name] = cls
+    return cls
+
+
+def make_experts(names, **options) -> list["Expert"]:
+    """Instantiate experts by name; ``options`` maps a name to keyword arguments for it."""
+    out = []
+    for n in names:
+        if n not in EXPERTS:
+            raise KeyError(n)
+        out.append(EXPERTS[n](**options.get(n, {})))
+    return out
+
+
+class Expert:
+    """Base class: ``propose(frame, prev, entity) -> Gaussian | None``.
+
+    ``image_based`` experts look at pixels; ``uses_detections`` marks the detector expert (the
+    tracker knows that a track without it is coasting on the other experts).
+    """
+
+    name: ClassVar[str] = ""
+    #: experts of one family see the same evidence (e.g. KLT and dense flow both measure the
+    #: image motion), so their errors are correlated; PoTE tempers them (see ``PoTE.opinions``)
+    family: ClassVar[str] = ""
+    image_based: ClassVar[bool] = True
+    uses_detections: ClassVar[bool] = False
+
+    def propose(self, frame: Frame, prev: Frame | None, entity: Entity) -> Gaussian | None:
+        raise NotImplementedError
+
+    def propose_many(self, frame: Frame, prev: Frame | None, entities: list) -> list:
+        """Opinions on several entities at once (experts may batch the work; default: a loop)."""
+        return [self.propose(frame, prev, e) for e in entities]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+# --------------------------------------------------------------------------------------------
+# 2.4.1 Object detection
+# --------------------------------------------------------------------------------------------
+
+
+@register_expert
+class DetectionExpert(Expert):
+    """Detector expert with the indicator function of Eq. 2.4.
+
+    A detection counts only if its score is at least ``threshold`` and it intersects the entity's
+    previous box; among those the highest score wins, and it becomes a Gaussian by Eq. 2.9. When
+    the tracker has already assigned a detection to the entity (one-to-one data association, the
+    "additional ways of selecting a bounding box" of Sec. 2.4.1) that one is used.
+    The covariance is Eq. 2.9.
+    """
+
+    name = "det"
+    image_based = False
+    uses_detections = True
+
+    def __init__(self, threshold: float = 0.0):
+        self.threshold = threshold
+
+    def select(self, frame: Frame, entity: Entity) -> np.ndarray | None:
+        if entity.detection is not None:
+            return np.asarray(entity.detection, dtype=float)
+        d = frame.detections
+        if not len(d):
+            return None
+        ok = (d[:, 4] >= self.threshold) & (intersection(d[:, :4], entity.box[None, :]) > 0)
+        if not ok.any():
+            return None
+        cand = d[ok]
+        return cand[int(np.argmax(cand[:, 4]))]
+
+    def propose(self, frame, prev, entity):
+        det = self.select(frame, entity)
+        if det is None:
+            return None
+        return box_gaussian(det[:4])
+
+
+# --------------------------------------------------------------------------------------------
+# 2.4.2 Point features (KLT)
+# --------------------------------------------------------------------------------------------
+
+_LK = dict(winSize=(9, 9), maxLevel=2, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03))
+
+
+def _inner(box, shrink: float) -> np.ndarray:
+    x, y, w, h = box
+    return np.array([x + w * shrink, y + h * shrink, w * (1 - 2 * shrink), h * (1 - 2 * shrink)])
+
+
+def _roi(box, w_img: int, h_img: int) -> tuple[int, int, int, int] | None:
+    x0 = int(max(0, np.floor(box[0])))
+    y0 = int(max(0, np.floor(box[1])))
+    x1 = int(min(w_img, np.ceil(box[0] + box[2])))
+    y1 = int(min(h_img, np.ceil(box[1] + box[3])))
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        return None
+    return x0, y0, x1, y1
+
+
+@register_expert
+class KLTExpert(Expert):
+    """KLT point features inside the box vote for its top-left corner (Eq. 2.5-2.6).
+
+    Good features (Shi-Tomasi corners) are found inside the previous box (shrunk slightly to
+    avoid the background), tracked into the current frame with pyramidal Lucas-Kanade, and
+    checked forward-backward. Each feature keeps its offset to the box corner (Eq. 2.5) and votes
+    for the new corner (Eq. 2.6); the weights are the normalised inverse LK residuals (better
+    matched features count more; the drift bound of App. A.1 holds for any normalised weights).
+    Width and height stay those of the previous box. The covariance is Eq. 2.9 plus the weighted
+    spread of the votes divided by the number of votes. All entities' features of a frame go
+    through one forward and one backward LK call (:meth:`propose_many`).
+    """
+
+    name = "klt"
+    family = "image-motion"
+
+    def __init__(self, max_corners: int = 24, min_points: int = 4, shrink: float = 0.15, fb_max: float = 1.0,
+                 on_foreground: bool = False):
+        self.on_foreground = on_foreground
+        self.max_corners = max_corners
+        self.min_points = min_points
+        self.shrink = shrink
+        self.fb_max = fb_max
+
+    def points(self, prev: Frame, box) -> np.ndarray | None:
+        g = prev.grey
+        sbox = _inner(prev.to_small(box), self.shrink)
+        roi = _roi(sbox, g.shape[1], g.shape[0])
+        if roi is None:
+            return None
+        x0, y0, x1, y1 = roi
+        mask = None
+        if self.on_foreground and "fg" in prev._cache:
+            # the entity's own pixels are the moving ones: corners on the static background
+            # inside the box would vote for standing still
+            m = prev._cache["fg"][y0:y1, x0:x1]
+            if np.count_nonzero(m) >= 0.15 * m.size:
+                mask = m
+        pts = cv2.goodFeaturesToTrack(g[y0:y1, x0:x1], self.max_corners, 0.01, 2, blockSize=3, mask=mask)
+        if (pts is None or len(pts) < self.min_points) and mask is not None:
+            pts = cv2.goodFeaturesToTrack(g[y0:y1, x0:x1], self.max_corners, 0.01, 2, blockSize=3)
+        if pts is None or len(pts) < self.min_points:
+            return None
+        return pts.reshape(-1, 2).astype(np.float32) + np.float32([x0, y0])
+
+    def propose(self, frame, prev, entity):
+        return self.propose_many(frame, prev, [entity])[0]
+
+    def propose_many(self, frame, prev, entities):
+        """All entities' features go through one forward and one backward LK call."""
+        out = [None] * len(entities)
+        if prev is None or not entities:
+            return out
+        pts = [self.points(prev, np.asarray(e.box, dtype=float)) for e in entities]
+        idx = [i for i, p in enumerate(pts) if p is not None]
+        if not idx:
+            return out
+        allp = np.concatenate([pts[i] for i in idx]).astype(np.float32)
+        p1, st, err = cv2.calcOpticalFlowPyrLK(prev.grey, frame.grey, allp.reshape(-1, 1, 2), None, **_LK)
+        if p1 is None:
+            return out
+        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(frame.grey, prev.grey, p1, None, **_LK)
+        fb = np.linalg.norm(p0r.reshape(-1, 2) - allp, axis=1)
+        good = (st.ravel() == 1) & (st2.ravel() == 1) & (fb < self.fb_max)
+        p1 = p1.reshape(-1, 2)
+        err = err.ravel()
+        start = 0
+        for i in idx:
+            n = len(pts[i])
+            sl = slice(start, start + n)
+            start += n
+            g = good[sl]
+            if g.sum() < self.min_points:
+                continue
+            out[i] = self._vote(frame, entities[i], allp[sl][g], p1[sl][g], err[sl][g])
+        return out
+
+    def _vote(self, frame, entity, p0, p1, err):
+        box = np.asarray(entity.box, dtype=float)
+        s = frame.scale
+        corner = box[:2] * s
+        G = corner[None, :] - p0                      # Eq. 2.5 (offset of the corner)
+        votes = G + p1                                # Eq. 2.6 (corner voted by each feature)
+        # robust: drop votes far from the median displacement
+        med = np.median(votes, axis=0)
+        dev = np.linalg.norm(votes - med, axis=1)
+        mad = np.median(dev) + 0.5
+        keep = dev <= 3.0 * mad
+        if keep.sum() < self.min_points:
+            return None
+        votes, err = votes[keep], err[keep]
+        w = 1.0 / (err + 1e-3)
+        w = w / w.sum()                               # normalised weights, sum to 1
+        new_corner = (w[:, None] * votes).sum(0) / s
+        d = votes / s - new_corner
+        spread = (w[:, None, None] * (d[:, :, None] * d[:, None, :])).sum(0) / max(len(votes), 1)
+        g = box_gaussian(np.r_[new_corner, box[2:4]])
+        entity.scratch["klt_points"] = int(len(votes))
+        return Gaussian(g.mean, g.cov + spread)
+
+
+# --------------------------------------------------------------------------------------------
+# 2.4.3 Background subtraction
+# --------------------------------------------------------------------------------------------
+
+
+def foreground(frame: Frame, prev: Frame | None = None) -> np.ndarray:
+    """The frame's foreground mask (uint8 0/255, downscaled), from the shared MOG2 model.
+
+    The model is updated once per frame, in frame order, whoever asks first.
+    """
+    def make():
+        bg = frame.shared.get("bg")
+        if bg is None:
+            bg = cv2.createBackgroundSubtractorMOG2(history=200, varThreshold=16, detectShadows=True)
+            frame.shared["bg"] = bg
+        small = frame.small
+        # the background model runs at half the working scale (4x cheaper); blobs of people
+        # survive that easily
+        tiny = cv2.resize(small, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        m = bg.apply(tiny)
+        m = np.where(m == 255, 255, 0).astype(np.uint8)   # shadows (127) are background
+        m = cv2.resize(m, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST)
+        m = cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        return cv2.dilate(m, np.ones((3, 3), np.uint8))
+    return frame.cached("fg", make)
+
+
+def foreground_fraction(frame: Frame, box) -> float:
+    """Fraction of the box covered by foreground pixels."""
+    m = foreground(frame)
+    roi = _roi(frame.to_small(box), m.shape[1], m.shape[0])
+    if roi is None:
+        return 0.0
+    x0, y0, x1, y1 = roi
+    return float(np.count_nonzero(m[y0:y1, x0:x1])) / float((y1 - y0) * (x1 - x0))
+
+
+def blobs(frame: Frame) -> np.ndarray:
+    """Connected components of the foreground as ``(N, 5)`` boxes ``x, y, w, h, area`` (full px)."""
+    def make():
+        m = foreground(frame)
+        m = m[::2, ::2]               # components of the half-resolution mask: 4x cheaper
+        s = frame.scale * 0.5
+        n, _, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        if n <= 1:
+            return np.zeros((0, 5))
+        st = stats[1:].astype(float)
+        out = np.empty((len(st), 5))
+        out[:, :4] = st[:, :4] / s
+        out[:, 4] = st[:, 4] / s ** 2
+        return out
+    return frame.cached("blobs", make)
+
+
+@register_expert
+class BlobExpert(Expert):
+    """Background subtraction (MOG2) and connected components (Sec. 2.4.3).
+
+    Blobs whose area lies between ``ar_min`` and ``ar_max`` times the entity's box area survive
+    (Eq. 2.7); the one overlapping the previous box best (Eq. 2.8) is the expert's box, with the
+    blob's centre; its covariance is Eq. 2.9 plus the squared discrepancy between the blob's and
+    the entity's sizes (Sec. 2.7.1). No qualifying blob gives no opinion (the motion expert
+    already covers a stationary entity).
+    """
+
+    name = "blob"
+
+    def __init__(self, ar_min: float = 0.25, ar_max: float = 2.0, min_iou: float = 0.2):
+        self.ar_min = ar_min
+        self.ar_max = ar_max
+        self.min_iou = min_iou
+
+    def propose(self, frame, prev, entity):
+        b = blobs(frame)
+        if not len(b):
+            return None
+        box = np.asarray(entity.box, dtype=float)
+        area = box_area(box)
+        ok = (b[:, 4] > self.ar_min * area) & (b[:, 4] < self.ar_max * area)   # Eq. 2.7
+        if not ok.any():
+            return None
+        cand = b[ok, :4]
+        ov = iou(cand, box[None, :])                                            # Eq. 2.8
+        k = int(np.argmax(ov))
+        if ov[k] < self.min_iou:
+            return None
+        blob = cand[k]
+        # a blob much wider or taller than the entity is several people or a shadow: no opinion
+        if blob[2] > 1.6 * box[2] or blob[3] > 1.6 * box[3]:
+            return None
+        # Sec. 2.7.1: an expert's variance grows with the discrepancy of its box from the entity's
+        g = box_gaussian(blob)
+        return Gaussian(g.mean, g.cov + np.diag((blob[2:4] - box[2:4]) ** 2))
+
+
+# --------------------------------------------------------------------------------------------
+# 2.4.4 Motion continuity
+# --------------------------------------------------------------------------------------------
+
+
+def acceleration_variance(centres, dt: float, floor) -> np.ndarray:
+    """Per-axis variance of the acceleration from second finite differences (Eq. 2.10's Σ_a)."""
+    floor = np.broadcast_to(np.asarray(floor, dtype=float), (2,))
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    if len(c) < 4:
+        return floor.copy()
+    a = (c[2:] - 2 * c[1:-1] + c[:-2]) / dt ** 2
+    return np.maximum(np.mean(a ** 2, axis=0), floor)
+
+
+def new_motion_filter(centre, size, dt: float, pos_std: float | None = None) -> KalmanFilter:
+    """A constant-velocity Kalman filter (Eq. 2.10) at ``centre`` with zero velocity."""
+    F, Q, H = constant_velocity(dt, 1.0, dims=2)
+    w, h = size
+    x = np.array([centre[0], 0.0, centre[1], 0.0])
+    vstd = 0.5 * h  # up to ~a body height per second, unknown direction
+    P = np.diag([w / 6.0, vstd ** 2, h / 6.0, vstd ** 2])
+    return KalmanFilter(x, P, F, Q, H, np.diag([w / 6.0, h / 6.0]))
+
+
+@register_expert
+class MotionExpert(Expert):
+    """Constant-velocity motion model (Eq. 2.10) as an expert.
+
+    The acceleration noise ``Σ_a`` is the mean squared second finite difference of the fused
+    centres over the last ``window`` seconds, floored at ``accel_floor`` box heights per s².
+    The expert's Gaussian is the Kalman prediction ``N(H x, H P Hᵀ)``; it predicts on a copy, so
+    the tracker decides when to commit (``predict_entity``).
+    """
+
+    name = "motion"
+    image_based = False
+
+    def __init__(self, window: float = 1.0, accel_floor: float = 0.5):
+        self.window = window
+        self.accel_floor = accel_floor
+
+    def process_noise(self, entity: Entity) -> np.ndarray:
+        """``Q`` of Eq. 2.10 (``B Σ_a Bᵀ`` per axis) with ``Σ_a`` from finite differences."""
+        kf = entity.kf
+        dt = kf.F[0, 1]
+        n = max(4, int(round(self.window / dt)) + 2)
+        h = entity.box[3]
+        var = acceleration_variance(entity.centres[-n:], dt, (self.accel_floor * h) ** 2)
+        # same as artmotion.filters.constant_velocity(dt, var)[1], without the generic machinery
+        b = np.array([0.5 * dt * dt, dt])
+        bb = np.outer(b, b)
+        Q = np.zeros((4, 4))
+        Q[:2, :2] = bb * var[0]
+        Q[2:, 2:] = bb * var[1]
+        return Q
+
+    def predict_entity(self, entity: Entity) -> Gaussian:
+        kf = entity.kf
+        kf.predict(Q=self.process_noise(entity))
+        return Gaussian(kf.H @ kf.x, kf.H @ kf.P @ kf.H.T)
+
+    def propose(self, frame, prev, entity):
+        if entity.kf is None:
+            return None
+        kf = entity.kf
+        F = kf.F
+        Q = self.process_noise(entity)
+        x = F @ kf.x
+        P = F @ kf.P @ F.T + Q
+        return Gaussian(kf.H @ x, kf.H @ P @ kf.H.T)
+
+
+# --------------------------------------------------------------------------------------------
+# 2.4.5 Dense optical flow
+# --------------------------------------------------------------------------------------------
+
+
+def dense_flow(frame: Frame, prev: Frame) -> np.ndarray:
+    """Dense optical flow prev -> frame (DIS, downscaled; in small-image pixels), cached."""
+    def make():
+        dis = frame.shared.get("dis")
+        if dis is None:
+            dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+            frame.shared["dis"] = dis
+        return dis.calc(prev.grey, frame.grey, None)
+    return frame.cached(f"flow{prev.number}", make)
+
+
+@register_expert
+class FlowExpert(Expert):
+    """Mean dense optical flow (DIS) of the pixels in the box moves the box (Sec. 2.4.5).
+
+    The mean is taken over the foreground pixels (background subtraction) of the inner part of
+    the box, leaving out vectors beyond two standard deviations. Covariance: Eq. 2.9 plus the
+    variance of the mean flow.
+    """
+
+    name = "flow"
+    family = "image-motion"
+
+    def __init__(self, shrink: float = 0.15):
+        self.shrink = shrink
+
+    def propose(self, frame, prev, entity):
+        if prev is None:
+            return None
+        flow = dense_flow(frame, prev)
+        box = np.asarray(entity.box, dtype=float)
+        roi = _roi(_inner(frame.to_small(box), self.shrink), flow.shape[1], flow.shape[0])
+        if roi is None:
+            return None
+        x0, y0, x1, y1 = roi
+        f = flow[y0:y1:2, x0:x1:2].reshape(-1, 2)     # every other pixel is plenty for a mean
+        if len(f) < 4:
+            return None
+        # the entity's pixels are the foreground ones (background subtraction); the static
+        # background inside the box would otherwise pull the mean towards zero
+        fg = foreground(prev)[y0:y1:2, x0:x1:2].reshape(-1) > 0
+        if fg.sum() >= max(4, 0.1 * len(f)):
+            f = f[fg]
+        # one robust pass: drop vectors beyond two standard deviations of the mean
+        d = ((f - f.mean(axis=0)) ** 2).sum(axis=1)
+        f = f[d <= 4.0 * d.mean() + 1e-6]
+        m = f.mean(axis=0) / frame.scale
+        var = f.var(axis=0) / frame.scale ** 2 / len(f)
+        g = box_gaussian(np.r_[box[:2] + m, box[2:4]])
+        return Gaussian(g.mean, g.cov + np.diag(var))
+
+
+def detections_support(frame: Frame, dets: np.ndarray) -> np.ndarray:
+    """Foreground fraction of each detection box (background-motion support)."""
+    return np.array([foreground_fraction(frame, d[:4]) for d in np.asarray(dets).reshape(-1, 5)])

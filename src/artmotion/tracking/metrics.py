@@ -1,0 +1,347 @@
+"""Multi-object tracking scores: CLEAR MOT, identity (IDF1) and HOTA.
+
+Our own implementation of the definitions, following the conventions of TrackEval's
+``MotChallenge2DBox`` for the MOT15 benchmark, so that the numbers agree with it:
+
+* boxes are ``x, y, w, h`` (columns 2..5); the similarity is their IoU;
+* ground-truth rows whose confidence column (6) truncates to 0 are ignored (MOT15 has no
+  classes, so there is no distractor removal and no class filter); result rows are all kept;
+* an id may appear at most once per frame, in the ground truth and in the results.
+
+CLEAR MOT (Bernardin & Stiefelhagen 2008) matches per frame with the Hungarian algorithm on IoU
+``>= iou_threshold``, preferring to continue the match of the previous frame; MOTP is the mean IoU
+of the matches (in [0, 1], as TrackEval reports it). IDF1 (Ristani et al. 2016) uses one global
+min-cost bipartite matching between ground-truth and result identities. HOTA (Luiten et al. 2021)
+is averaged over the localisation thresholds ``alpha = 0.05, 0.10, ..., 0.95``.
+See docs/metrics.md.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from artmotion.errors import InputError
+from artmotion.geometry import iou_matrix
+from artmotion.io import read_mot
+
+__all__ = ["evaluate", "evaluate_sequences", "format_table", "HOTA_ALPHAS", "METRIC_ORDER"]
+
+EPS = np.finfo(float).eps
+#: The HOTA localisation thresholds (the same floats TrackEval uses).
+HOTA_ALPHAS = np.arange(0.05, 0.99, 0.05)
+#: Keys in the order the CLI prints them.
+METRIC_ORDER = (
+    "MOTA", "MOTP", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA", "LocA",
+    "GT", "MT", "PT", "ML", "FM", "IDS", "FP", "FN", "TP", "GT_DETS", "Precision", "Recall",
+)
+
+
+@dataclass
+class _Frames:
+    """Per-frame data with ids relabelled to ``0..n-1``."""
+
+    gt_ids: list[np.ndarray]
+    tr_ids: list[np.ndarray]
+    sims: list[np.ndarray]
+    num_gt_ids: int
+    num_tr_ids: int
+    num_gt_dets: int
+    num_tr_dets: int
+    num_frames: int
+
+
+def _load(x, what: str) -> tuple[np.ndarray, str | None]:
+    """A ``(N, >=7)`` float array from a path or array, validated; and the path if any."""
+    if isinstance(x, (str, os.PathLike)):
+        return read_mot(x), os.fspath(x)
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what}: not a numeric array ({exc})") from None
+    if arr.size == 0:
+        return np.zeros((0, 10)), None
+    if arr.ndim != 2 or arr.shape[1] < 6:
+        raise InputError(f"{what}: expected an (N, >=6) MOT array, got shape {arr.shape}")
+    if not np.isfinite(arr[:, :7] if arr.shape[1] >= 7 else arr).all():
+        raise InputError(f"{what}: NaN or infinite value")
+    frames = arr[:, 0]
+    if (frames < 1).any() or (frames != np.round(frames)).any():
+        raise InputError(f"{what}: frame numbers must be positive integers")
+    if (arr[:, 4] <= 0).any() or (arr[:, 5] <= 0).any():
+        raise InputError(f"{what}: non-positive box size")
+    if arr.shape[1] == 6:  # no confidence column: every row counts
+        arr = np.hstack([arr, np.ones((len(arr), 1))])
+    return arr, None
+
+
+def _check_ids(arr: np.ndarray, what: str, path: str | None) -> None:
+    ids = arr[:, 1]
+    if (ids != np.round(ids)).any():
+        raise InputError(f"{what}: track ids must be integers", path=path)
+    if len(arr) < 2:
+        return
+    pairs = arr[:, :2]
+    uniq, counts = np.unique(pairs, axis=0, return_counts=True)
+    if (counts > 1).any():
+        f, i = uniq[np.argmax(counts > 1)]
+        raise InputError(f"{what}: id {int(i)} appears more than once in frame {int(f)}", path=path)
+
+
+def _prepare(gt: np.ndarray, res: np.ndarray) -> _Frames:
+    # MOT15 convention: gt rows with confidence 0 ("zero marked") are not evaluated.
+    gt = gt[np.trunc(gt[:, 6]) != 0]
+    # Relabel ids to 0..n-1 (sorted, as TrackEval does) and group rows by frame, keeping file order.
+    gt_u, gt_lab = np.unique(gt[:, 1], return_inverse=True)
+    tr_u, tr_lab = np.unique(res[:, 1], return_inverse=True)
+    frames = np.union1d(gt[:, 0], res[:, 0]).astype(int)
+    g_order = np.argsort(gt[:, 0], kind="stable")
+    r_order = np.argsort(res[:, 0], kind="stable")
+    g_bounds = np.searchsorted(gt[g_order, 0], frames, side="left"), np.searchsorted(gt[g_order, 0], frames, side="right")
+    r_bounds = np.searchsorted(res[r_order, 0], frames, side="left"), np.searchsorted(res[r_order, 0], frames, side="right")
+    gt_ids, tr_ids, sims = [], [], []
+    for k in range(len(frames)):
+        gi = g_order[g_bounds[0][k] : g_bounds[1][k]]
+        ri = r_order[r_bounds[0][k] : r_bounds[1][k]]
+        gt_ids.append(gt_lab[gi].astype(int).ravel())
+        tr_ids.append(tr_lab[ri].astype(int).ravel())
+        sims.append(iou_matrix(gt[gi, 2:6], res[ri, 2:6]))
+    last = int(frames.max()) if len(frames) else 0
+    return _Frames(gt_ids, tr_ids, sims, len(gt_u), len(tr_u), len(gt), len(res), last)
+
+
+def _clear(d: _Frames, thr: float) -> dict:
+    """CLEAR MOT counts with TrackEval's matching and bookkeeping."""
+    G = d.num_gt_ids
+    tp = fn = fp = ids = 0
+    motp_sum = 0.0
+    gt_frames = np.zeros(G)  # frames in which each gt id is present
+    gt_matched = np.zeros(G)  # frames in which it is matched
+    gt_frag = np.zeros(G)  # number of tracked stretches
+    last_id = np.full(G, np.nan)  # tracker id of the last match, any time ago (for IDS)
+    prev_id = np.full(G, np.nan)  # tracker id matched in the previous evaluated frame (for continuity)
+    for g, t, sim in zip(d.gt_ids, d.tr_ids, d.sims):
+        if len(g) == 0:
+            fp += len(t)
+            continue
+        if len(t) == 0:
+            fn += len(g)
+            gt_frames[g] += 1
+            continue
+        # Continue last frame's matches first (weight 1000), then maximise the IoU.
+        score = 1000.0 * (t[None, :] == prev_id[g][:, None]) + sim
+        score[sim < thr - EPS] = 0
+        rows, cols = linear_sum_assignment(-score)
+        ok = score[rows, cols] > EPS
+        rows, cols = rows[ok], cols[ok]
+        mg, mt = g[rows], t[cols]
+        before = last_id[mg]
+        ids += int(np.sum(~np.isnan(before) & (mt != before)))
+        gt_frames[g] += 1
+        gt_matched[mg] += 1
+        was_tracked = ~np.isnan(prev_id)
+        last_id[mg] = mt
+        prev_id[:] = np.nan
+        prev_id[mg] = mt
+        gt_frag += ~was_tracked & ~np.isnan(prev_id)
+        n = len(rows)
+        tp += n
+        fn += len(g) - n
+        fp += len(t) - n
+        motp_sum += float(sim[rows, cols].sum())
+    present = gt_frames > 0
+    ratio = gt_matched[present] / gt_frames[present]
+    mt_ = int(np.sum(ratio > 0.8))
+    pt_ = int(np.sum(ratio >= 0.2)) - mt_
+    ml_ = G - mt_ - pt_
+    frag = int(np.sum(gt_frag[gt_frag > 0] - 1))
+    n_gt = max(1, tp + fn)
+    # MOTA is undefined without ground truth; report 0 then, as TrackEval does.
+    mota = (tp - fp - ids) / n_gt if tp + fn else 0.0
+    moda = (tp - fp) / n_gt if tp + fn else 0.0
+    return {
+        "MOTA": mota,
+        "MOTP": motp_sum / max(1, tp),
+        "MODA": moda,
+        "MT": mt_, "PT": pt_, "ML": ml_, "FM": frag, "IDS": ids,
+        "TP": tp, "FP": fp, "FN": fn, "GT": G, "GT_DETS": tp + fn,
+        "Precision": tp / max(1, tp + fp), "Recall": tp / n_gt,
+    }
+
+
+def _identity(d: _Frames, thr: float) -> dict:
+    """IDF1: the identity matching that maximises the number of frames two identities agree."""
+    agree = np.zeros((d.num_gt_ids, d.num_tr_ids))
+    for g, t, sim in zip(d.gt_ids, d.tr_ids, d.sims):
+        gi, ti = np.nonzero(sim >= thr)
+        np.add.at(agree, (g[gi], t[ti]), 1)
+    # Min IDFN + IDFP = |gt| + |res| - 2 IDTP: the min-cost bipartite matching maximises IDTP.
+    idtp = 0
+    if agree.size:
+        rows, cols = linear_sum_assignment(-agree)
+        idtp = int(round(agree[rows, cols].sum()))
+    idfn = d.num_gt_dets - idtp
+    idfp = d.num_tr_dets - idtp
+    return {
+        "IDF1": idtp / max(1.0, idtp + 0.5 * idfp + 0.5 * idfn),
+        "IDP": idtp / max(1, idtp + idfp),
+        "IDR": idtp / max(1, idtp + idfn),
+        "IDTP": idtp, "IDFP": idfp, "IDFN": idfn,
+    }
+
+
+def _hota(d: _Frames) -> dict:
+    """HOTA, DetA, AssA, LocA averaged over the alphas (and per alpha under ``*_alpha``)."""
+    G, T = d.num_gt_ids, d.num_tr_ids
+    A = len(HOTA_ALPHAS)
+    gt_count = np.zeros(G)
+    tr_count = np.zeros(T)
+    soft = np.zeros((G, T))  # soft co-occurrence, each frame's IoU normalised like a Jaccard
+    for g, t, sim in zip(d.gt_ids, d.tr_ids, d.sims):
+        gt_count[g] += 1
+        tr_count[t] += 1
+        if sim.size:
+            denom = sim.sum(0)[None, :] + sim.sum(1)[:, None] - sim
+            j = np.zeros_like(sim)
+            mask = denom > EPS
+            j[mask] = sim[mask] / denom[mask]
+            soft[g[:, None], t[None, :]] += j
+    with np.errstate(invalid="ignore", divide="ignore"):
+        align = soft / (gt_count[:, None] + tr_count[None, :] - soft)
+    tp = np.zeros(A)
+    fn = np.zeros(A)
+    fp = np.zeros(A)
+    loc = np.zeros(A)
+    mg_all, mt_all, ms_all = [], [], []
+    for g, t, sim in zip(d.gt_ids, d.tr_ids, d.sims):
+        if len(g) == 0 or len(t) == 0:
+            fp += len(t)
+            fn += len(g)
+            continue
+        rows, cols = linear_sum_assignment(-(align[g[:, None], t[None, :]] * sim))
+        s = sim[rows, cols]
+        n = (s[None, :] >= HOTA_ALPHAS[:, None] - EPS).sum(1)
+        tp += n
+        fn += len(g) - n
+        fp += len(t) - n
+        mg_all.append(g[rows])
+        mt_all.append(t[cols])
+        ms_all.append(s)
+    ass_a, ass_re, ass_pr = np.zeros(A), np.zeros(A), np.zeros(A)
+    if mg_all:
+        mg, mt, ms = np.concatenate(mg_all), np.concatenate(mt_all), np.concatenate(ms_all)
+        for a, alpha in enumerate(HOTA_ALPHAS):
+            keep = ms >= alpha - EPS
+            loc[a] = ms[keep].sum()
+            pair, count = np.unique(mg[keep] * T + mt[keep], return_counts=True)
+            pg, pt = pair // T, pair % T
+            c = count.astype(float)
+            denom = max(1.0, tp[a])
+            ass_a[a] = np.sum(c * c / np.maximum(1, gt_count[pg] + tr_count[pt] - c)) / denom
+            ass_re[a] = np.sum(c * c / np.maximum(1, gt_count[pg])) / denom
+            ass_pr[a] = np.sum(c * c / np.maximum(1, tr_count[pt])) / denom
+    det_a = tp / np.maximum(1, tp + fn + fp)
+    det_re = tp / np.maximum(1, tp + fn)
+    det_pr = tp / np.maximum(1, tp + fp)
+    hota = np.sqrt(det_a * ass_a)
+    loc_a = np.maximum(1e-10, loc) / np.maximum(1e-10, tp)
+    if d.num_gt_dets == 0 or d.num_tr_dets == 0:
+        loc_a = np.ones(A)
+    return {
+        "HOTA": float(hota.mean()), "DetA": float(det_a.mean()), "AssA": float(ass_a.mean()),
+        "LocA": float(loc_a.mean()), "DetRe": float(det_re.mean()), "DetPr": float(det_pr.mean()),
+        "AssRe": float(ass_re.mean()), "AssPr": float(ass_pr.mean()),
+        "HOTA(0)": float(hota[0]),
+        "HOTA_alpha": hota.tolist(), "DetA_alpha": det_a.tolist(), "AssA_alpha": ass_a.tolist(),
+    }
+
+
+def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False) -> dict:
+    """Score tracking results ``res`` against ground truth ``gt`` (one sequence).
+
+    Both are MOTChallenge arrays ``(N, >=6)`` — ``frame, id, x, y, w, h[, conf, ...]`` — or paths
+    of MOTChallenge text files. ``iou_threshold`` is the IoU a match needs for CLEAR MOT and IDF1
+    (HOTA sweeps its own thresholds).
+
+    Returns a dict of plain Python numbers: ``MOTA, MOTP, MODA, IDF1, IDP, IDR, IDTP, IDFP, IDFN,
+    HOTA, DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MT, PT, ML, FM, IDS, FP, FN, TP, GT``
+    (ground-truth boxes evaluated), ``GT_IDS`` (ground-truth tracks), ``Precision, Recall,
+    Frames`` (the last frame number); with ``per_alpha`` also the lists ``HOTA_alpha, DetA_alpha,
+    AssA_alpha`` over :data:`HOTA_ALPHAS`. Every other value is a plain ``int`` or ``float``.
+    Raises :class:`~artmotion.errors.InputError` for unreadable or inconsistent input.
+    """
+    thr = float(iou_threshold)
+    if not 0.0 < thr <= 1.0:
+        raise InputError(f"IoU threshold must be in (0, 1], got {iou_threshold!r}")
+    gt_arr, gt_path = _load(gt, "ground truth")
+    res_arr, res_path = _load(res, "results")
+    _check_ids(gt_arr, "ground truth", gt_path)
+    _check_ids(res_arr, "results", res_path)
+    d = _prepare(gt_arr, res_arr)
+    out = {}
+    out.update(_clear(d, thr))
+    out.update(_identity(d, thr))
+    out.update(_hota(d))
+    out["Frames"] = d.num_frames
+    return {k: (v if isinstance(v, list) else (int(v) if isinstance(v, (int, np.integer)) else float(v)))
+            for k, v in out.items() if per_alpha or not k.endswith("_alpha")}
+
+
+def evaluate_sequences(pairs, iou_threshold: float = 0.5, per_alpha: bool = False) -> dict:
+    """Scores over several sequences, ``pairs`` of ``(gt, res)`` (arrays or paths).
+
+    The sequences are concatenated with disjoint frames and ids and scored as one, which sums the
+    CLEAR and identity counts and weights HOTA's association by its true positives: the same as
+    TrackEval's combined (``COMBINED_SEQ``) result.
+    """
+    gts, ress = [], []
+    frame_off = id_off = 0
+    for k, (gt, res) in enumerate(pairs):
+        g, g_path = _load(gt, f"ground truth #{k + 1}")
+        r, r_path = _load(res, f"results #{k + 1}")
+        _check_ids(g, "ground truth", g_path)
+        _check_ids(r, "results", r_path)
+        g, r = g[:, :7].copy(), r[:, :7].copy()
+        span = int(max(g[:, 0].max(initial=0), r[:, 0].max(initial=0)))
+        lo = min(g[:, 1].min(initial=0), r[:, 1].min(initial=0))
+        hi = max(g[:, 1].max(initial=0), r[:, 1].max(initial=0))
+        g[:, 0] += frame_off
+        r[:, 0] += frame_off
+        g[:, 1] += id_off - lo
+        r[:, 1] += id_off - lo
+        gts.append(g)
+        ress.append(r)
+        frame_off += span
+        id_off += int(hi - lo) + 1
+    if not gts:
+        raise InputError("no sequences to evaluate")
+    return evaluate(np.vstack(gts), np.vstack(ress), iou_threshold=iou_threshold, per_alpha=per_alpha)
+
+
+def format_table(scores: dict, gt=None, results=None, iou_threshold: float = 0.5) -> str:
+    """A plain-text table of :func:`evaluate`'s scores (ratios as percentages)."""
+    ratio_keys = ("MOTA", "MOTP", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA", "Precision", "Recall")
+    count_keys = ("GT", "MT", "PT", "ML", "FM", "IDS", "FP", "FN", "TP", "GT_DETS")
+    labels = {"Precision": "Prec", "Recall": "Rec", "GT_DETS": "GT boxes"}
+    lines = []
+    if gt is not None:
+        lines.append(f"ground truth: {os.fspath(gt)}" if isinstance(gt, (str, os.PathLike)) else "ground truth: array")
+    if results is not None:
+        lines.append(f"results:      {os.fspath(results)}" if isinstance(results, (str, os.PathLike)) else "results: array")
+    lines.append(f"frames: {scores['Frames']}   IoU threshold: {iou_threshold:g}   (ratios in %)")
+    lines.append("")
+
+    def row(keys, fmt):
+        heads = [labels.get(k, k) for k in keys]
+        vals = [fmt(scores[k]) for k in keys]
+        width = [max(len(h), len(v)) for h, v in zip(heads, vals)]
+        lines.append("  ".join(h.rjust(w) for h, w in zip(heads, width)))
+        lines.append("  ".join(v.rjust(w) for v, w in zip(vals, width)))
+
+    row(ratio_keys, lambda v: f"{100 * v:.1f}")
+    lines.append("")
+    row(count_keys, lambda v: f"{int(v)}")
+    return "\n".join(lines)

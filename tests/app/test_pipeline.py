@@ -1,0 +1,130 @@
+"""End-to-end: the pipeline on the shipped sample, the HTML report in headless Chromium, batches."""
+
+import errno
+import json
+import os
+import shutil
+import subprocess
+
+import cv2
+import numpy as np
+import pytest
+
+from artmotion.app import EventIndex, load_run, run_batch, run_pipeline
+from artmotion.io import read_mot
+
+
+def small_sequence(sample, dst, n=20):
+    """The first ``n`` frames of the sample as a MOTChallenge folder of images (fast to track)."""
+    (dst / "img1").mkdir(parents=True)
+    (dst / "det").mkdir()
+    (dst / "gt").mkdir()
+    cap = cv2.VideoCapture(str(sample / "TUD-Campus.mp4"))
+    for i in range(1, n + 1):
+        ok, frame = cap.read()
+        assert ok
+        cv2.imwrite(str(dst / "img1" / f"{i:06d}.jpg"), frame)
+    cap.release()
+    for sub in ("det/det.txt", "gt/gt.txt"):
+        rows = [line for line in (sample / sub).read_text().splitlines() if int(line.split(",")[0]) <= n]
+        (dst / sub).write_text("\n".join(rows) + "\n")
+    ini = (sample / "seqinfo.ini").read_text()
+    (dst / "seqinfo.ini").write_text(ini.replace("seqLength=71", f"seqLength={n}").replace("TUD-Campus", dst.name))
+    return dst
+
+
+@pytest.fixture(scope="module")
+def sample_run(tmp_path_factory):
+    from conftest import SAMPLE
+
+    out = tmp_path_factory.mktemp("run") / "campus"
+    return run_pipeline(SAMPLE, out)
+
+
+def test_pipeline_writes_everything(sample_run):
+    out = sample_run.out_dir
+    for name in ("results.txt", "events.jsonl", "sentences.txt", "report.html", "run.json", "annotated.mp4"):
+        assert (out / name).is_file(), name
+    run = load_run(out)
+    assert run["metrics"]["MOTA"] > 0.4  # ground truth ships with the sample
+    assert len(read_mot(out / "results.txt")) == len(sample_run.tracks)
+    assert run["sentences"] and all(s["sentence"].strip() for s in run["sentences"])
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp") or ".tmp." in p.name]
+
+
+def test_report_renders_in_headless_chromium(sample_run, tmp_path):
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium missing in CI: `make system-deps` should have installed it")
+        pytest.skip("chromium not installed (make system-deps installs it)")
+    report = sample_run.report
+    flags = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'profile'}"]
+    dom = subprocess.run(flags + ["--dump-dom", report.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    run = load_run(sample_run.out_dir)
+    assert dom.count("<tr>") >= len(run["sentences"]) + 1
+    assert 'id="metrics-table"' in dom and "MOTA" in dom and "<svg" in dom
+    shot = tmp_path / "report.png"
+    subprocess.run(flags + [f"--screenshot={shot}", "--window-size=1000,2600", report.as_uri()],
+                   capture_output=True, timeout=120)
+    img = cv2.imread(str(shot))
+    assert img is not None and img.shape[1] == 1000
+    # The embedded pictures (trajectories, key frames) were decoded: much of the page is not white.
+    coloured = (img.astype(int).sum(axis=2) < 600).mean()
+    assert coloured > 0.2
+
+
+def test_batch_isolates_failures_and_resumes(tmp_path, monkeypatch):
+    from conftest import SAMPLE
+
+    archive = tmp_path / "archive"
+    archive.mkdir()
+    small_sequence(SAMPLE, archive / "good-a")
+    small_sequence(SAMPLE, archive / "good-b")
+    (archive / "corrupt.mp4").write_bytes(os.urandom(4096))
+    small_sequence(SAMPLE, archive / "full-disk")
+    out = tmp_path / "runs"
+
+    import artmotion.io.atomic as atomic
+
+    real_replace = os.replace
+
+    def replace(src, dst):  # the disk is full where the third item writes
+        if "full-disk" in str(dst):
+            raise OSError(errno.ENOSPC, "No space left on device", str(dst))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    report = run_batch(archive, out, workers=2, processes=False)
+    status = {os.path.basename(o.item): o for o in report.outcomes}
+    assert status["good-a"].status == status["good-b"].status == "done"
+    assert status["corrupt.mp4"].status == "failed" and "corrupt.mp4" in status["corrupt.mp4"].message
+    assert status["full-disk"].status == "failed" and "No space left" in status["full-disk"].message
+    assert not (out / "full-disk" / "run.json").exists()
+    finished = sorted(p.parent.name for p in out.glob("*/run.json"))
+    assert finished == ["good-a", "good-b"]
+
+    monkeypatch.setattr(atomic.os, "replace", real_replace)
+    before = (out / "good-a" / "run.json").stat().st_mtime_ns
+    again = run_batch(archive, out, workers=1, processes=False)
+    status = {os.path.basename(o.item): o.status for o in again.outcomes}
+    assert status == {"good-a": "skipped", "good-b": "skipped", "corrupt.mp4": "failed", "full-disk": "done"}
+    assert (out / "good-a" / "run.json").stat().st_mtime_ns == before
+
+    with EventIndex(tmp_path / "db.sqlite") as idx:
+        for name in ("good-a", "good-b", "full-disk"):
+            idx.add_run(out / name)
+        assert len(idx.videos()) == 3
+
+
+def test_batch_cli_reports_failures(tmp_path, run_cli):
+    archive = tmp_path / "a"
+    archive.mkdir()
+    (archive / "broken.avi").write_bytes(b"\x00" * 100)
+    code, out, err = run_cli("batch", archive, "--out", tmp_path / "o")
+    assert code == 1
+    assert "0 done, 0 skipped, 1 failed" in out and "broken.avi" in err
+    code, _, err = run_cli("batch", tmp_path / "nothing-here")
+    assert code == 2 and "not a folder" in err

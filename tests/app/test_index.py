@@ -49,7 +49,8 @@ def index(tmp_path):
 
 def test_parse_query():
     q = parse_query("Person 3 exits left")
-    assert (q.subject, q.track, q.verb, q.direction) == ("person", 3, "exits", "left")
+    assert (q.subject, q.track, q.verb, q.direction, q.unknown) == ("person", 3, "exits", "left", [])
+    assert parse_query("man in red exits").unknown == ["man", "red"]
     assert parse_query("people walking together").verb == "interacts"
 
 
@@ -72,6 +73,11 @@ def test_track_and_video_filters(index):
 def test_fulltext_fallback_and_empty(index):
     hits = index.search("frames inside")
     assert hits and hits[0].match == "fulltext" and "inside" in hits[0].sentence
+    # every word must occur (stemmed): no flood of hits that share only "person"
+    assert index.search("zebra inside") == []
+    assert [(h.match, h.tracks) for h in index.search("inside")] == [("fulltext", [2])]
+    # understood whole and nothing matches: no full-text guesses ("3" would match "24.3 s")
+    assert index.search("person 3 merges") == []
     with pytest.raises(InputError):
         index.search("   ")
 

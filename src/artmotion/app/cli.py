@@ -126,7 +126,8 @@ def search_cmd(
         typer.echo("no match")
         raise typer.Exit(1)
     for h in hits:
-        typer.echo(f"{h.score:5.2f}  {h.video}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}")
+        how = "" if h.match == "structured" else "  (text match)"
+        typer.echo(f"{h.score:5.2f}  {h.video}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}{how}")
 
 
 def batch_cmd(

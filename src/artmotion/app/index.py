@@ -5,7 +5,8 @@ Every run folder written by :func:`artmotion.app.pipeline.run_pipeline` (``run.j
 frame ranges and track ids. :meth:`EventIndex.search` answers queries such as
 ``"person exits left"``: the query is parsed into subject / track id / verb / direction and
 matched on the structured columns, best first; when nothing structured matches, SQLite's FTS5
-full-text search over the sentences (bm25 ranking) is the fallback.
+full-text search over the sentences (every word of the query, stemmed; bm25 ranking) is
+the fallback.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ CREATE TABLE IF NOT EXISTS sentences (
     tracks TEXT NOT NULL, frame_start INTEGER, frame_end INTEGER
 );
 CREATE INDEX IF NOT EXISTS sentences_verb ON sentences(verb, adjective);
-CREATE VIRTUAL TABLE IF NOT EXISTS sentences_fts USING fts5(sentence, sid UNINDEXED);
+CREATE VIRTUAL TABLE IF NOT EXISTS sentences_fts USING fts5(sentence, sid UNINDEXED, tokenize='porter unicode61');
 """
 
 # Query words → the grammar's verbs (artmotion.language.grammar), in order of priority: "walk
@@ -52,8 +53,8 @@ VERBS = {
     "interacts": ("interact", "interacts", "interacting", "together", "with", "accompanies"),
     "merges": ("merge", "merges", "merged", "merging", "meet", "meets", "join", "joins", "occludes"),
     "splits": ("split", "splits", "separate", "separates", "parted", "part"),
-    "enters": ("enter", "enters", "entered", "entering", "entry", "arrive", "arrives", "appear", "appears", "comes"),
-    "exits": ("exit", "exits", "exited", "exiting", "leave", "leaves", "leaving", "vanish", "vanishes", "disappears"),
+    "enters": ("enter", "enters", "entered", "entering", "entry", "arrive", "arrives", "appear", "appears", "appearing", "comes"),
+    "exits": ("exit", "exits", "exited", "exiting", "leave", "leaves", "leaving", "vanish", "vanishes", "vanishing", "disappear", "disappears"),
     "opens": ("open", "opens", "opened", "opening"),
     "closes": ("close", "closes", "closed", "closing"),
     "stays": ("stay", "stays", "stands", "waits", "still"),
@@ -66,6 +67,8 @@ DIRECTIONS = {
     "downwards": ("down", "downwards", "downward", "bottom", "south", "towards"),
 }
 SUBJECTS = ("person", "tool", "people", "persons", "tools", "grasper", "object")
+STOPWORDS = {"a", "an", "the", "from", "to", "at", "in", "on", "of", "and", "who", "which", "frame", "frames",
+             "track", "id", "side", "image", "scene", "one", "into", "group", "their", "is", "are"}
 
 
 @dataclass
@@ -77,6 +80,7 @@ class Query:
     track: int | None = None
     verb: str | None = None
     direction: str | None = None
+    unknown: list[str] = field(default_factory=list)
 
     @property
     def structured(self) -> bool:
@@ -94,6 +98,8 @@ def parse_query(text: str) -> Query:
             q.subject = {"people": "person", "persons": "person", "tools": "tool", "grasper": "tool"}.get(word, word)
         elif any(word in forms for forms in DIRECTIONS.values()):
             q.direction = next(d for d, forms in DIRECTIONS.items() if word in forms)
+        elif word not in STOPWORDS and not any(word in forms for forms in VERBS.values()):
+            q.unknown.append(word)
     q.verb = next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
     return q
 
@@ -194,12 +200,17 @@ class EventIndex:
 
     # -------------------------------------------------------------- searching
     def search(self, text: str, video: str | None = None, limit: int = 20) -> list[Hit]:
-        """Matching moments, best first: structured match, else full-text fallback."""
+        """Matching moments, best first.
+
+        A query the parser understands whole (subject, track id, verb, direction) is answered by
+        structured matching alone; words it does not know send it to full-text search when the
+        structured match finds nothing.
+        """
         if not text.strip():
             raise InputError("empty query")
         q = parse_query(text)
         hits = self._structured(q, video) if q.structured else []
-        if not hits:
+        if not hits and (q.unknown or not q.structured):
             hits = self._fulltext(text, video)
         hits.sort(key=lambda h: (-h.score, h.video, h.frame_start))
         return hits[:limit]
@@ -238,7 +249,7 @@ class EventIndex:
         terms = re.findall(r"\w+", text.lower())
         if not terms:
             return []
-        match = " OR ".join(f'"{t}"' for t in terms)
+        match = " AND ".join(f'"{t}"' for t in terms)  # every word, stemmed (porter): "merges" finds "merge"
         rows = self.conn.execute(
             "SELECT sid, bm25(sentences_fts) FROM sentences_fts WHERE sentences_fts MATCH ?", (match,)
         ).fetchall()

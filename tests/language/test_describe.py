@@ -145,6 +145,15 @@ def test_pose_hysteresis(tmp_path):
     assert sentences(out) == ["Tool opens at frame 4.", "Tool closes at frame 11."]
 
 
+def test_pose_automatic_thresholds_ignore_a_still_jaw():
+    frames = np.arange(1, 200)
+    rng = np.random.default_rng(0)
+    still = 40 + rng.normal(0, 1.5, frames.size)  # held open, GP noise only
+    assert pose_changes(frames, still) == []
+    moving = np.where((frames // 50) % 2 == 0, 10.0, 60.0) + rng.normal(0, 1.5, frames.size)
+    assert [v for _, v, _ in pose_changes(frames, moving)] == ["opens", "closes", "opens"]
+
+
 def test_cli_describe(tmp_path, run_cli):
     res = tmp_path / "results.txt"
     ev = tmp_path / "events.jsonl"

@@ -44,12 +44,15 @@ def run_cmd(
     object_class: str = typer.Option("person", "--class", help="Object class named in sentences."),
     video: bool = typer.Option(True, "--video/--no-video", help="Also write annotated.mp4."),
     index: Optional[Path] = typer.Option(None, "--index", help="Add the run to this SQLite event index."),
+    pose_model: Optional[Path] = typer.Option(None, "--pose-model",
+                                              help="Pose model (artmotion pose train): adds opens/closes sentences."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     from artmotion.app.index import EventIndex
     from artmotion.app.pipeline import run_pipeline
 
-    res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video)
+    res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video,
+                       pose_model=pose_model)
     n_tracks = len(set(res.tracks[:, 1].astype(int).tolist())) if len(res.tracks) else 0
     typer.echo(f"{res.name}: {n_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s")

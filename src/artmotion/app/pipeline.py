@@ -54,16 +54,59 @@ def track_summary(tracks: np.ndarray) -> list[dict]:
     return out
 
 
-def describe_run(tracks, events, width, height, fps, object_class: str = "person") -> list[dict]:
-    """Sentences of one run (:func:`artmotion.language.describe`) as flat dicts for the index:
-    ``sentence, subject`` (the class word), ``verb, adjective, object, tracks, frame_start, frame_end``."""
+def _flat(triplet, object_class: str) -> dict:
+    return {"sentence": triplet.sentence, "subject": object_class, "verb": triplet.verb,
+            "adjective": triplet.adjective, "object": triplet.object, "tracks": [int(i) for i in triplet.tracks],
+            "frame_start": int(triplet.frames[0]), "frame_end": int(triplet.frames[1])}
+
+
+def describe_run(tracks, events, width, height, fps, object_class: str = "person",
+                 poses: dict[int, tuple[np.ndarray, np.ndarray]] | None = None) -> list[dict]:
+    """Sentences of one run (:func:`artmotion.language.describe.describe`) as flat dicts for the
+    index: ``sentence, subject`` (the class word), ``verb, adjective, object, tracks, frame_start,
+    frame_end``. ``poses`` maps a track id to its (frames, opening angles) for "opens"/"closes"."""
     from artmotion.language.describe import describe
 
-    out = []
-    for t in describe(tracks, events, classes=(object_class, {}), image_size=(width, height), fps=fps):
-        out.append({"sentence": t.sentence, "subject": object_class, "verb": t.verb, "adjective": t.adjective,
-                    "object": t.object, "tracks": [int(i) for i in t.tracks],
-                    "frame_start": int(t.frames[0]), "frame_end": int(t.frames[1])})
+    triplets = list(describe(tracks, events, classes=(object_class, {}), image_size=(width, height), fps=fps))
+    empty = np.empty((0, 10))
+    for tid, pose in sorted((poses or {}).items()):
+        triplets += describe(empty, [], pose=pose, pose_subject=object_class, pose_track=tid, fps=fps)
+    triplets.sort(key=lambda t: (t.frames[0], t.frames[1]))
+    return [_flat(t, object_class) for t in triplets]
+
+
+def track_poses(seq, tracks: np.ndarray, model_path, column: str | None = None,
+                min_boxes: int = 5) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per track, the Kalman-filtered opening angle of a pose model over the track's box crops.
+
+    The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
+    filtered in time (Eq. 3.6-3.7). ``column`` is the angle to describe, by default the first
+    whose name contains "open".
+    """
+    from artmotion.pose.model import PoseRegressor
+
+    model = PoseRegressor.load(model_path)
+    names = model.names_ or []
+    if column is None:
+        column = next((n for n in names if "open" in n.lower()), None)
+    if column not in names:
+        raise InputError(f"the pose model has no opening-angle column (angles: {', '.join(names)})", path=model_path)
+    k = names.index(column)
+    crops: dict[int, list] = {}
+    for fno, frame in seq.frames():
+        for r in tracks[tracks[:, 0] == fno]:
+            x0, y0 = max(int(r[2]), 0), max(int(r[3]), 0)
+            x1, y1 = min(int(r[2] + r[4]), frame.shape[1]), min(int(r[3] + r[5]), frame.shape[0])
+            if x1 - x0 >= 4 and y1 - y0 >= 4:
+                crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy()))
+    out = {}
+    dt = 1.0 / float(seq.fps) if seq.fps else 1.0
+    for tid, items in crops.items():
+        if len(items) < min_boxes:
+            continue
+        mean, std = model.predict([c for _, c in items], return_std=True)
+        mean, _ = model.make_filter(dt).filter(mean, std)
+        out[tid] = (np.array([f for f, _ in items]), np.asarray(mean)[:, k])
     return out
 
 
@@ -75,8 +118,13 @@ def run_pipeline(
     experts: tuple[str, ...] | None = None,
     progress: bool = False,
     video: bool = True,
+    pose_model: str | os.PathLike | None = None,
 ) -> RunResult:
-    """Track ``source``, describe it in sentences, score it if ground truth is present, report."""
+    """Track ``source``, describe it in sentences, score it if ground truth is present, report.
+
+    With ``pose_model`` (from ``artmotion pose train``) every track's crops also go through the
+    pose regressor, and the tool's opening and closing become sentences.
+    """
     from artmotion.app.report import write_report
     from artmotion.tracking import evaluate, open_sequence, track
 
@@ -91,7 +139,8 @@ def run_pipeline(
     result = track(source, **kwargs)
     tracks = np.asarray(result.tracks, dtype=float).reshape(-1, 10)
     events = list(result.events)
-    sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class)
+    poses = track_poses(seq, tracks, pose_model) if pose_model is not None else None
+    sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
     if seq.gt_path is not None and Path(seq.gt_path).is_file():
         metrics = {k: float(v) for k, v in evaluate(seq.gt_path, tracks).items()}

@@ -325,19 +325,24 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     return frames.astype(int), np.asarray(values), column
 
 
+MIN_POSE_RANGE = 10.0  # degrees: a smaller spread of the opening angle is noise, not opening/closing
+
+
 def pose_changes(
-    frames: np.ndarray, angles: np.ndarray, open_above: float | None = None, close_below: float | None = None
+    frames: np.ndarray, angles: np.ndarray, open_above: float | None = None, close_below: float | None = None,
+    min_range: float = MIN_POSE_RANGE,
 ) -> list[tuple[int, str, float]]:
     """``(frame, "opens"|"closes", angle)`` at each state change, with hysteresis.
 
     The state becomes open when the angle rises to ``open_above`` and closed when it falls to
     ``close_below``; in between it keeps its state. Defaults: 65% and 35% of the way between the
-    10th and 90th percentile of the angles. The initial state is not an event.
+    10th and 90th percentile of the angles, provided they lie at least ``min_range`` degrees apart
+    (else the jaw held still and nothing is said). The initial state is not an event.
     """
     angles = np.asarray(angles, dtype=float)
     lo, hi = np.percentile(angles, [10, 90])
     if open_above is None or close_below is None:
-        if hi - lo < 1e-6:
+        if hi - lo < min_range:
             return []
         open_above = lo + 0.65 * (hi - lo) if open_above is None else open_above
         close_below = lo + 0.35 * (hi - lo) if close_below is None else close_below

@@ -80,3 +80,21 @@ def write_mot_folder(root: Path, frames, dets: list[list], fps: float = 10.0, na
         for r in dets:
             fh.write(",".join(f"{v:g}" for v in r) + "\n")
     return root
+
+
+def replay_groups(events):
+    """Replay merge/split events as a state machine; check that they are consistent."""
+    active = {}
+    for e in events:
+        if e["type"] == "merge":
+            g = e["group"]
+            assert g not in active or set(e["tracks"]) > active[g], e
+            active[g] = set(e["tracks"])
+        elif e["type"] == "split":
+            assert active.get(e["group"]) == set(e["tracks"]), e
+            del active[e["group"]]
+        else:
+            continue
+        members = [t for ids in active.values() for t in ids]
+        assert len(members) == len(set(members)), f"a track in two groups at frame {e['frame']}"
+    return active

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from artmotion.geometry import iou
-from artmotion.tracking import track
-from artmotion.tracking.mot import side_of
+from artmotion.tracking import TrackerConfig, track
+from artmotion.tracking.mot import collapse_group_flicker, side_of
 
-from _synth import H, W, crossing, write_mot_folder
+from _synth import H, W, crossing, moving_blob, replay_groups, write_mot_folder
 
 N = 40
 
@@ -73,14 +73,85 @@ def test_online_mode_is_causal_and_keeps_identities(crossing_seq):
     assert res.tracks[:, 0].min() >= 3
 
 
-def test_enter_and_exit_events(crossing_seq):
+@pytest.mark.parametrize("online", [False, True])
+def test_no_enter_or_exit_for_people_there_at_the_start_and_the_end(crossing_seq, online):
+    """Both blobs are in view from frame 1 to the last frame: they neither enter nor exit."""
     root, truth, _ = crossing_seq
-    res = track(root)
-    enters = [e for e in res.events if e["type"] == "enter"]
-    assert len(enters) == 2 and all(e["frame"] == 1 for e in enters)
+    res = track(root, online=online)
+    assert res.num_tracks == 2
+    assert not [e for e in res.events if e["type"] in ("enter", "exit")], res.events
     for e in res.events:
         assert {"type", "frame", "tracks"} <= set(e) and isinstance(e["frame"], int)
         assert all(isinstance(t, int) for t in e["tracks"])
+
+
+@pytest.mark.parametrize("online", [False, True])
+def test_enter_from_the_left_and_exit_to_the_right(tmp_path, online):
+    """A blob walking in from the left and out on the right: one enter (left), one exit (right)."""
+    frames, truth = moving_blob(n=60, v=(6.0, 0.0), start=(-40.0, 90.0))
+    inside = [k for k, b in enumerate(truth) if b[0] >= -0.3 * b[2] and b[0] + b[2] <= W + 0.3 * b[2]]
+    rows = [[k + 1, -1, *truth[k], 0.95] for k in inside]
+    root = write_mot_folder(tmp_path / "walk", frames, rows)
+    res = track(root, online=online)
+    assert res.num_tracks == 1
+    enters = [e for e in res.events if e["type"] == "enter"]
+    exits = [e for e in res.events if e["type"] == "exit"]
+    assert len(enters) == 1 and enters[0]["side"] == "left" and enters[0]["frame"] > 1
+    assert len(exits) == 1 and exits[0]["side"] == "right" and exits[0]["frame"] < 60
+
+
+def _jittery_crossing(tmp_path, flicker):
+    """The crossing with noisy boxes and a longer occlusion in which the hidden blob's detection
+    briefly comes back (frames ``flicker``): the group splits and re-forms at once."""
+    frames, truth = crossing(N)
+    dx = np.abs(truth[1][:, 0] - truth[2][:, 0])
+    hidden = set(np.where(dx < 60)[0]) - set(flicker)
+    rng = np.random.default_rng(0)
+    rows = []
+    for k in range(N):
+        for i, boxes in truth.items():
+            if i == 2 and k in hidden:
+                continue
+            rows.append([k + 1, -1, *(boxes[k] + rng.normal(0, 1.0, 4) * [1, 1, 0.5, 0.5]), 0.95])
+    return write_mot_folder(tmp_path / "jitter", frames, rows)
+
+
+def test_one_crossing_gives_one_merge_and_one_split(tmp_path):
+    root = _jittery_crossing(tmp_path, flicker=[20])
+    # without hysteresis the group flickers: split, re-merge, split
+    raw = [e for e in track(root, config=TrackerConfig(split_hold=0)).events if e["type"] in ("merge", "split")]
+    assert len(raw) > 2, raw
+    res = track(root)
+    assert res.num_tracks == 2
+    group = [e for e in res.events if e["type"] in ("merge", "split")]
+    assert [e["type"] for e in group] == ["merge", "split"], group
+    merge, split = group
+    assert merge["group"] == split["group"] and merge["tracks"] == split["tracks"] == [1, 2]
+    assert split["frame"] == raw[-1]["frame"], "the split that holds is the last one"
+
+
+def _g(kind, frame, tracks, group):
+    return {"type": kind, "frame": frame, "tracks": tracks, "group": group, "x": 0.0, "y": 0.0}
+
+
+def test_collapse_group_flicker():
+    tud = [_g("merge", 34, [1, 6], 2), _g("split", 37, [1, 6], 2), _g("merge", 37, [1, 6], 3),
+           _g("split", 38, [1, 6], 3), _g("merge", 38, [1, 6], 4), _g("split", 40, [1, 6], 4)]
+    out = collapse_group_flicker(tud, hold=8)
+    assert [(e["type"], e["frame"], e["group"]) for e in out] == [("merge", 34, 2), ("split", 40, 2)]
+    # a split that holds longer than the hold time is a new interaction
+    apart = [_g("merge", 10, [1, 2], 1), _g("split", 15, [1, 2], 1), _g("merge", 30, [1, 2], 2),
+             _g("split", 35, [1, 2], 2)]
+    assert collapse_group_flicker(apart, hold=8) == apart
+    # other members re-merging is not the same group
+    other = [_g("merge", 10, [1, 2], 1), _g("split", 15, [1, 2], 1), _g("merge", 16, [3, 4], 2)]
+    assert collapse_group_flicker(other, hold=8) == other
+    # a third person joining while the group re-forms: one merge into the old group
+    join = [_g("merge", 10, [1, 2], 1), _g("split", 15, [1, 2], 1), _g("merge", 16, [1, 2, 3], 2),
+            _g("split", 30, [1, 2, 3], 2)]
+    out = collapse_group_flicker(join, hold=8)
+    assert [(e["type"], e["frame"], e["tracks"], e["group"]) for e in out] == [
+        ("merge", 10, [1, 2], 1), ("merge", 16, [1, 2, 3], 1), ("split", 30, [1, 2, 3], 1)]
 
 
 def test_result_rows_are_mot_format(crossing_seq):
@@ -109,3 +180,18 @@ def test_side_of():
     assert side_of([0, 100, 20, 40], W, H) == "left"
     assert side_of([W - 21, 100, 20, 40], W, H) == "right"
     assert side_of([150, 100, 20, 40], W, H) == "inside"
+
+
+def test_collapse_keeps_the_event_stream_consistent_when_someone_briefly_leaves():
+    # 4 leaves the group of 1, 4, 5 (split + merge of those who stay) and is back two frames later
+    evs = [_g("merge", 10, [1, 4, 5], 1), _g("split", 15, [1, 4, 5], 1), _g("merge", 15, [1, 5], 1),
+           _g("merge", 17, [1, 4, 5], 1), _g("split", 30, [1, 4, 5], 1)]
+    out = collapse_group_flicker(evs, hold=8)
+    assert [(e["type"], e["frame"], e["tracks"]) for e in out] == [
+        ("merge", 10, [1, 4, 5]), ("split", 30, [1, 4, 5])]
+
+
+@pytest.mark.parametrize("online", [False, True])
+def test_group_events_replay_consistently(tmp_path, online):
+    res = track(_jittery_crossing(tmp_path, flicker=[20, 22]), online=online)
+    assert replay_groups(res.events) == {}

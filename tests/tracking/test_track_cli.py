@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import json
 
 import cv2
@@ -11,7 +12,7 @@ import pytest
 from artmotion.io import read_events, read_mot
 from artmotion.tracking import evaluate, track
 
-from _synth import moving_blob, write_mot_folder
+from _synth import moving_blob, replay_groups, write_mot_folder
 
 # the peers (SORT / ByteTrack / OC-SORT) reach about 0.63 MOTA and 0.68 IDF1 here
 MOTA_FLOOR = 0.65
@@ -48,6 +49,18 @@ def test_track_writes_results_events_and_video(tud_run):
     cap.release()
     assert ok and img.shape == (480, 640, 3) and n == 71
     assert not list(out.glob(".*tmp*")), "temporary files left behind"
+
+
+def test_tud_campus_events(tud_run):
+    """Everyone in view at frame 1 is there already (no enter); group events are consistent and
+    the crossing of two people gives one merge and one split."""
+    _, out = tud_run
+    events = read_events(out / "ev.jsonl")
+    assert not [e for e in events if e["type"] == "enter" and e["frame"] == 1]
+    assert not [e for e in events if e["type"] == "exit" and e["frame"] == 71]
+    replay_groups(events)
+    pairs = collections.Counter((e["type"], tuple(e["tracks"])) for e in events if e["type"] in ("merge", "split"))
+    assert max(pairs.values()) == 1, pairs
 
 
 def test_tud_campus_scores_above_the_peers(tud_run):

@@ -19,8 +19,11 @@ Online pass (:class:`MultiObjectTracker`, one frame at a time):
 Offline pass (:meth:`MultiObjectTracker.finish`): constant-velocity interpolation of the members'
 trajectories inside each group (Sec. 2.5.3), the tentative beginnings of confirmed tracks,
 back-tracked beginnings, coasted gaps (with the drift found at re-acquisition spread back over
-them), stitching of tracklets that motion and appearance join across a gap, and optionally
-coasted tails up to the exit decided by the motion and histogram cues (Sec. 2.5.4).
+them), stitching of tracklets that motion and appearance join across a gap, optionally
+coasted tails up to the exit decided by the motion and histogram cues (Sec. 2.5.4), removal of
+short tracks that appear and vanish inside the image, and smoothing of the output boxes (track-level
+sizes, centres from a local straight-line fit). Events: enter/exit (none for people present at
+the sequence's start/end) and merge/split with hysteresis (:func:`collapse_group_flicker`).
 ``online=True`` keeps only what was known at each frame. See docs/tracking.md.
 """
 
@@ -51,7 +54,7 @@ from artmotion.tracking.pote import PoTE, fuse
 #: a group member, tentative beginning, back-tracked frame
 KINDS = ("det", "coast", "group", "tentative", "back", "interp")
 
-__all__ = ["Group", "MultiObjectTracker", "Track", "TrackerConfig", "side_of"]
+__all__ = ["Group", "MultiObjectTracker", "Track", "TrackerConfig", "collapse_group_flicker", "side_of"]
 
 
 @dataclass
@@ -92,6 +95,10 @@ class TrackerConfig:
     stitch_dist: float = 0.5   #: stitching tolerance: box heights, plus ...
     stitch_speed: float = 0.5  #: ... box heights per second of gap
     stitch_kl: float = 1.5     #: largest KL divergence of the histograms of stitched tracklets
+    out_size: float = 1.0      #: offline: a box's size is the median of the track's detection-supported sizes within +- this many seconds
+    out_smooth: float = 0.5    #: offline: a box's centre is a local linear fit of the track's centres within +- this many seconds
+    min_life: float = 0.5      #: offline: a track shorter than this that appears and vanishes inside the image is dropped
+    split_hold: float = 0.3    #: seconds a split must hold; a re-merge of the members within it continues the group
 
 
 @dataclass
@@ -172,9 +179,12 @@ class MultiObjectTracker:
         n_buf = max(3, int(round(self.cfg.backtrack * self.fps))) + 1
         self.buffer: collections.deque = collections.deque(maxlen=n_buf)
         self.last_frame = 0
+        self.first_frame: int | None = None
         self.online_rows: list = []
         self.kill_on_exit = self.cfg.kill_on_exit
         self.relabel: dict[int, int] = {}
+        self.group_log: dict[int, dict[int, tuple]] = {}   # frame -> {group id: member track ids}
+        self.piece_span: dict[int, tuple[int, int]] = {}    # track id -> frames it gives the output
 
     # ------------------------------------------------------------------ helpers
     def _frames(self, seconds: float) -> int:
@@ -226,6 +236,8 @@ class MultiObjectTracker:
         cfg = self.cfg
         n = frame.number
         self.last_frame = n
+        if self.first_frame is None:
+            self.first_frame = n
         dets = frame.detections
         dets = dets[dets[:, 4] >= cfg.low] if len(dets) else dets
         frame.detections = dets
@@ -341,6 +353,8 @@ class MultiObjectTracker:
         # 6. births from unassigned detections
         self._births(frame, dets, used)
 
+        if self.groups:
+            self.group_log[n] = {g.id: tuple(m.id for m in g.members) for g in self.groups}
         if self.online:
             self._online_rows(n)
         frame.small, frame.grey    # keep the small images for back-tracking and histograms
@@ -682,13 +696,71 @@ class MultiObjectTracker:
             for f, bx in t.back.items():
                 rec.setdefault(f, [bx, "back", 0.0])
             pieces[t.id] = rec
+        self.piece_span = {i: (min(rec), max(rec)) for i, rec in pieces.items() if rec}
         pieces = self._stitch(pieces)
+        pieces = {i: rec for i, rec in pieces.items() if not self._flash(rec)}
+        if cfg.out_size > 0:
+            for rec in pieces.values():
+                self._smooth_sizes(rec, self._frames(cfg.out_size))
+        if cfg.out_smooth > 0:
+            for rec in pieces.values():
+                self._smooth_centres(rec, self._frames(cfg.out_smooth))
         out = []
         for tid, rec in pieces.items():
             for f in sorted(rec):
                 box, kind, score = rec[f]
                 out.append([f, tid, *box, score if score > 0 else 0.5, KINDS.index(kind)])
         return np.array(out, dtype=float).reshape(-1, 8), set(pieces)
+
+    def _flash(self, rec: dict) -> bool:
+        """A false alarm by the entry/exit logic (Sec. 2.5.4): lasts under ``min_life`` seconds, and
+        both appears and vanishes inside the image (not at a border, not at the sequence's ends)."""
+        f0, f1 = min(rec), max(rec)
+        if f1 - f0 + 1 >= self._frames(self.cfg.min_life) or self.cfg.min_life <= 0:
+            return False
+        if f0 <= (self.first_frame or 1) or f1 >= self.last_frame:
+            return False
+        return all(side_of(rec[f][0], self.width, self.height) == "inside" for f in (f0, f1))
+
+    @staticmethod
+    def _smooth_centres(rec: dict, k: int) -> None:
+        """Offline smoothing of a track's centres: a straight-line fit over +-``k`` frames.
+
+        The online estimate at a frame knows only the past; offline, each centre is the value at
+        that frame of the least-squares line through the track's centres within +-``k`` frames
+        (a pedestrian's path is close to straight over a second), which removes the per-frame
+        jitter of detections and experts without lagging behind (a fixed-lag smoother).
+        """
+        fs = np.array(sorted(rec))
+        cs = np.array([box_center(rec[f][0]) for f in fs])
+        new = {}
+        for f in fs:
+            near = np.abs(fs - f) <= k
+            if near.sum() < 3:
+                continue
+            A = np.stack([np.ones(near.sum()), fs[near] - f], 1)
+            coef, *_ = np.linalg.lstsq(A, cs[near], rcond=None)
+            new[f] = coef[0]
+        for f, c in new.items():
+            rec[f][0] = box_from_center(c, rec[f][0][2:4])
+
+    @staticmethod
+    def _smooth_sizes(rec: dict, k: int) -> None:
+        """Offline box size: the median size of the track's detections within +-``k`` frames.
+
+        A person's size changes slowly; per-frame detection boxes jitter (and sometimes span a
+        neighbour), so each output box keeps its centre and takes the track-level size.
+        """
+        fs = np.array(sorted(f for f in rec if rec[f][1] in ("det", "tentative")))
+        if len(fs) < 3:
+            return
+        sizes = np.array([rec[f][0][2:4] for f in fs])
+        for f in rec:
+            near = np.abs(fs - f) <= k
+            if near.sum() < 3:
+                near = np.argsort(np.abs(fs - f))[:3]
+            size = np.median(sizes[near], axis=0)
+            rec[f][0] = box_from_center(box_center(rec[f][0]), size)
 
     @staticmethod
     def _interpolate(rec: dict, a: int, b: int, kind: str) -> None:
@@ -775,6 +847,8 @@ class MultiObjectTracker:
                 # drop what overlaps the gap: coasted tail of one, back-tracked start of the other
                 rec = {f: v for f, v in rec.items() if f <= fa}
                 rec.update({f: v for f, v in rj.items() if f >= fb})
+                self.piece_span[k] = (self.piece_span[k][0], fb - 1)   # the gap: still k's person
+                self.piece_span[j] = (fb, self.piece_span[j][1])
                 self._interpolate(rec, fa, fb, "interp")
                 self.relabel[j] = i
                 k = j
@@ -789,6 +863,108 @@ class MultiObjectTracker:
         cs = np.array([box_center(b) for b, k, _ in t.boxes.values() if k == "det"])
         travel = np.linalg.norm(cs.max(0) - cs.min(0)) if len(cs) else 0.0
         return travel < 0.5 * t.size[1]
+
+    def _root(self, i: int) -> int:
+        """The output track a tracker id ended up in (tracklets are stitched into their first piece)."""
+        while i in self.relabel:
+            i = self.relabel[i]
+        return i
+
+    def _track_events(self, res: np.ndarray, new: dict, length: int) -> list[dict]:
+        """``enter``/``exit`` events of the output tracks (``new``: tracker id -> output id).
+
+        A sentence "person 3 enters" must mean that the person came into view: a track whose
+        person was already there when the sequence started (its first detection, or its
+        back-tracked or first reported box, is on the sequence's first frame) gets no ``enter``
+        -- online too, where the track is only reported from its confirmation on (there the
+        ``enter`` is at the first reported frame, its side and position from the first
+        detection, where the person came into view). Likewise no
+        ``exit`` for a track still present at the end: its last box is on the last frame, or the
+        tracker still holds it (coasting or in a group) when the sequence ends.
+        """
+        first = self.first_frame if self.first_frame is not None else 1
+        began, last = {}, {}
+        for t in self.all_tracks:
+            r = self._root(t.id)
+            f0 = min([t.first, *t.back])
+            box0 = t.back[f0] if f0 in t.back else t.boxes[t.first][0]
+            if r not in began or f0 < began[r][0]:
+                began[r] = (f0, box0)
+            if r not in last or t.first > last[r].first:
+                last[r] = t     # the tracklet that ends the output track
+        alive = {r: t.state != "dead" for r, t in last.items()}
+        events = []
+        for old, nid in new.items():
+            r = res[res[:, 1] == nid]
+            f0, f1 = int(r[:, 0].min()), int(r[:, 0].max())
+            b0, b1 = r[r[:, 0] == f0][0, 2:6], r[r[:, 0] == f1][0, 2:6]
+            if old in began and began[old][0] < f0:
+                # online, a track is reported from its confirmation: it came in where it was first seen
+                b0 = np.clip(began[old][1], [-np.inf, -np.inf, 1, 1], np.inf)
+            c0, c1 = box_center(b0), box_center(b1)
+            if min(f0, began.get(old, (f0,))[0]) > first:
+                events.append({"type": "enter", "frame": f0, "tracks": [nid],
+                               "side": side_of(b0, self.width, self.height),
+                               "x": round(float(c0[0]), 1), "y": round(float(c0[1]), 1)})
+            if f1 < length and not alive.get(old, False):
+                events.append({"type": "exit", "frame": f1, "tracks": [nid],
+                               "side": side_of(b1, self.width, self.height),
+                               "x": round(float(c1[0]), 1), "y": round(float(c1[1]), 1)})
+        return events
+
+    def _group_events(self, res: np.ndarray, new: dict) -> list[dict]:
+        """``merge``/``split`` events of the output tracks, from the groups' membership frame by frame.
+
+        A tracker track counts as a member on a frame only if the output shows it there under its
+        output id (offline, stitched tracklets each own their part of the track: a tracklet still
+        coasting in a group after the next tracklet of the person has started is no longer that
+        person; in the interpolated gap before it, it still is). The events replay as a state
+        machine: an output group starts (``merge``) when it has two such members; when someone
+        joins, a ``merge`` lists all members; when someone leaves and two or more remain, a
+        ``split`` lists the members before and a ``merge`` (same group id) those who stay
+        together; it ends (``split``) when fewer than two remain. A group still together on the
+        sequence's last frame gets no ``split``; no track is in two groups at once.
+        """
+        present = {(int(f), int(i)) for f, i in res[:, :2]}
+        boxes = {(int(r[0]), int(r[1])): r[2:6] for r in res}
+
+        def members(n: int, raw: tuple) -> tuple:
+            out = set()
+            for i in raw:
+                r = self._root(i)
+                if r not in new or (n, new[r]) not in present:
+                    continue
+                span = self.piece_span.get(i)
+                if not self.online and span is not None and not span[0] <= n <= span[1]:
+                    continue
+                out.add(new[r])
+            return tuple(sorted(out)) if len(out) >= 2 else ()
+
+        def event(kind: str, n: int, g: int, ids: tuple, at: int) -> dict:
+            c = box_center(union_box([boxes[(at, i)] for i in ids]))
+            return {"type": kind, "frame": int(n), "tracks": [int(i) for i in ids], "group": int(g),
+                    "x": round(float(c[0]), 1), "y": round(float(c[1]), 1)}
+
+        events, state = [], {}   # state: group id -> (members, frame seen)
+        for n in range(min(self.group_log, default=0), self.last_frame + 1):
+            now = {g: members(n, raw) for g, raw in self.group_log.get(n, {}).items()}
+            for g, (ids, at) in list(state.items()):
+                cur = now.get(g, ())
+                if set(cur) == set(ids):
+                    state[g] = (ids, n)
+                    continue
+                if not cur or not set(cur) >= set(ids):
+                    events.append(event("split", n, g, ids, at))
+                if cur:
+                    events.append(event("merge", n, g, cur, n))
+                    state[g] = (cur, n)
+                else:
+                    del state[g]
+            for g, cur in now.items():
+                if cur and g not in state:
+                    events.append(event("merge", n, g, cur, n))
+                    state[g] = (cur, n)
+        return events
 
     def _finalise(self, rows: np.ndarray, keep_ids: set, length: int):
         if not len(rows):
@@ -811,30 +987,57 @@ class MultiObjectTracker:
         res = res[o]
         #: what produced each row (an index into KINDS), for diagnostics
         self.row_kinds = rows[o, 7].astype(int)
-        events = []
-        for old, nid in new.items():
-            r = res[res[:, 1] == nid]
-            f0, f1 = int(r[:, 0].min()), int(r[:, 0].max())
-            b0, b1 = r[r[:, 0] == f0][0, 2:6], r[r[:, 0] == f1][0, 2:6]
-            c0, c1 = box_center(b0), box_center(b1)
-            events.append({"type": "enter", "frame": f0, "tracks": [nid],
-                           "side": side_of(b0, self.width, self.height),
-                           "x": round(float(c0[0]), 1), "y": round(float(c0[1]), 1)})
-            if f1 < length:
-                events.append({"type": "exit", "frame": f1, "tracks": [nid],
-                               "side": side_of(b1, self.width, self.height),
-                               "x": round(float(c1[0]), 1), "y": round(float(c1[1]), 1)})
-        spans = {nid: (res[res[:, 1] == nid, 0].min(), res[res[:, 1] == nid, 0].max()) for nid in new.values()}
-        for ev in self.events:
-            ids = []
-            for i in ev["tracks"]:
-                while i in self.relabel:
-                    i = self.relabel[i]
-                if i in new and spans[new[i]][0] <= ev["frame"] <= spans[new[i]][1]:
-                    ids.append(new[i])
-            ids = sorted(set(ids))
-            if len(ids) >= 2:
-                events.append({**ev, "tracks": sorted(ids)})
+        events = self._track_events(res, new, length)
+        group_events = self._group_events(res, new)
+        if self.cfg.split_hold > 0:
+            group_events = collapse_group_flicker(group_events, self._frames(self.cfg.split_hold))
+        events += group_events
         order_key = {"exit": 0, "split": 1, "merge": 2, "enter": 3}
         events.sort(key=lambda e: (e["frame"], order_key.get(e["type"], 4), e["tracks"]))
         return res, events
+
+
+def collapse_group_flicker(events: list[dict], hold: int) -> list[dict]:
+    """One real interaction gives one ``merge`` and one ``split`` (hysteresis on group events).
+
+    A ``split`` followed within ``hold`` frames by a ``merge`` of the same members (or of a group
+    containing them all) did not hold: both are dropped and the new group continues the old one
+    (its id is replaced by the old group's, in every later event). ``events`` are merge/split
+    dicts with ``tracks`` and ``group``; returns them in chronological order.
+    """
+    order_key = {"split": 0, "merge": 1}
+    evs = sorted(events, key=lambda e: (e["frame"], order_key.get(e["type"], 2), e["tracks"]))
+    rename: dict[int, int] = {}
+    pending: list[tuple[int, dict]] = []   # (index in out, split event) waiting for a re-merge
+    out: list[dict | None] = []
+    for ev in evs:
+        ev = dict(ev)
+        if "group" in ev:
+            g = ev["group"]
+            while g in rename:
+                g = rename[g]
+            ev["group"] = g
+        pending = [(k, s) for k, s in pending if ev["frame"] - s["frame"] <= hold]
+        if ev["type"] == "merge":
+            hit = next(((k, s) for k, s in reversed(pending)
+                        if set(s["tracks"]) <= set(ev["tracks"]) and ev["frame"] >= s["frame"]), None)
+            if hit is not None:
+                k, s = hit
+                out[k] = None                      # the split did not hold ...
+                pending.remove(hit)
+                # ... nor did the smaller group that stayed together at the split
+                for q in range(k + 1, len(out)):
+                    e = out[q]
+                    if e is not None and e["type"] == "merge" and e["frame"] == s["frame"] \
+                            and e.get("group") == s.get("group"):
+                        out[q] = None
+                if "group" in ev and "group" in s and ev["group"] != s["group"]:
+                    rename[ev["group"]] = s["group"]
+                    ev["group"] = s["group"]
+                if set(ev["tracks"]) == set(s["tracks"]):
+                    continue                       # ... and the re-merge continues the same group
+                # someone else joined while the group re-formed: a merge into the old group
+        out.append(ev)
+        if ev["type"] == "split":
+            pending.append((len(out) - 1, ev))
+    return [e for e in out if e is not None]

@@ -16,27 +16,9 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from artmotion.io import atomic_write
+from artmotion.tracking.video import colour_of, draw_boxes
 
 MAX_KEY_FRAMES = 8
-
-
-def track_color(track_id: int) -> tuple[int, int, int]:
-    """A stable, well-separated BGR colour per track id (golden-ratio hue steps)."""
-    hue = int((track_id * 0.618033988749895 % 1.0) * 179)
-    hsv = np.uint8([[[hue, 200, 255]]])
-    return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
-
-
-def draw_boxes(image: np.ndarray, rows: np.ndarray, thickness: int = 2) -> np.ndarray:
-    """Draw MOT rows (``frame,id,x,y,w,h,...``) of one frame with their ids onto a copy of ``image``."""
-    out = image.copy()
-    for r in rows:
-        tid = int(r[1])
-        x, y, w, h = (int(round(v)) for v in r[2:6])
-        color = track_color(tid)
-        cv2.rectangle(out, (x, y), (x + w, y + h), color, thickness)
-        cv2.putText(out, str(tid), (x + 2, max(y - 4, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, color, 2, cv2.LINE_AA)
-    return out
 
 
 def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
@@ -46,7 +28,7 @@ def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
         rows = tracks[tracks[:, 1] == tid]
         rows = rows[np.argsort(rows[:, 0])]
         pts = np.stack([rows[:, 2] + rows[:, 4] / 2, rows[:, 3] + rows[:, 5]], axis=1).round().astype(np.int32)
-        color = track_color(tid)
+        color = colour_of(tid)
         cv2.polylines(out, [pts.reshape(-1, 1, 2)], False, color, 2, cv2.LINE_AA)
         cv2.circle(out, tuple(int(v) for v in pts[0]), 4, color, -1)
         cv2.putText(out, str(tid), tuple(int(v) for v in pts[-1]), cv2.FONT_HERSHEY_SIMPLEX, 0.6, color, 2, cv2.LINE_AA)
@@ -89,7 +71,7 @@ def _timeline_svg(manifest: dict, length: int) -> str:
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" class="timeline">']
     for t in tracks:
         y = 10 + rows[t["id"]] * row_h
-        b, g, r = track_color(t["id"])
+        b, g, r = colour_of(t["id"])
         parts.append(f'<text x="4" y="{y + 12}" font-size="12">track {t["id"]}</text>')
         parts.append(
             f'<rect x="{xs(t["first_frame"]):.1f}" y="{y + 3}" width="{max(xs(t["last_frame"]) - xs(t["first_frame"]), 2):.1f}"'
@@ -119,7 +101,7 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
     key_images, background_samples = {}, []
     for fno, frame in seq.frames():
         if fno in keys:
-            key_images[fno] = draw_boxes(frame, tracks[tracks[:, 0] == fno])
+            key_images[fno] = draw_boxes(frame.copy(), tracks[tracks[:, 0] == fno])
         if fno in samples:
             background_samples.append(cv2.resize(frame, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
     if background_samples:  # the median of frames spread over time removes moving people

@@ -12,7 +12,7 @@ from artmotion.errors import InputError
 from artmotion.geometry import box_center
 from artmotion.io import atomic_path
 
-__all__ = ["colour_of", "write_annotated"]
+__all__ = ["colour_of", "draw_boxes", "write_annotated"]
 
 
 def colour_of(track_id: int) -> tuple[int, int, int]:
@@ -21,6 +21,17 @@ def colour_of(track_id: int) -> tuple[int, int, int]:
     hsv = np.uint8([[[hue, 220, 255]]])
     b, g, r = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0]
     return int(b), int(g), int(r)
+
+
+def draw_boxes(img: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Draw MOT rows (``frame,id,x,y,w,h,...``) of one frame with their ids onto ``img`` (in place)."""
+    for r in rows:
+        tid = int(r[1])
+        x, y, bw, bh = r[2:6]
+        col = colour_of(tid)
+        cv2.rectangle(img, (int(x), int(y)), (int(x + bw), int(y + bh)), col, 2)
+        cv2.putText(img, str(tid), (int(x), max(12, int(y) - 4)), cv2.FONT_HERSHEY_SIMPLEX, 0.55, col, 2, cv2.LINE_AA)
+    return img
 
 
 def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: float, size: tuple[int, int],
@@ -45,15 +56,11 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
                 img = img.copy()
                 for r in by_frame[n]:
                     tid = int(r[1])
-                    x, y, bw, bh = r[2:6]
-                    col = colour_of(tid)
-                    trails[tid].append(tuple(int(v) for v in box_center(r[2:6]) + [0, bh / 2]))
+                    trails[tid].append(tuple(int(v) for v in box_center(r[2:6]) + [0, r[5] / 2]))
                     pts = list(trails[tid])
                     for a, b in zip(pts[:-1], pts[1:]):
-                        cv2.line(img, a, b, col, 2, cv2.LINE_AA)
-                    cv2.rectangle(img, (int(x), int(y)), (int(x + bw), int(y + bh)), col, 2)
-                    cv2.putText(img, str(tid), (int(x), max(12, int(y) - 4)), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
-                                col, 2, cv2.LINE_AA)
+                        cv2.line(img, a, b, colour_of(tid), 2, cv2.LINE_AA)
+                draw_boxes(img, by_frame[n])
                 for ev in ev_by_frame.get(n, []):
                     banner.append((n, f"{ev['type']} {','.join(map(str, ev['tracks']))}"))
                 banner = [(f, s) for f, s in banner if n - f < max(1, int(fps))][-4:]

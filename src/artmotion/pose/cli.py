@@ -1,9 +1,189 @@
-"""CLI commands of :mod:`artmotion.pose` (registered on the root app by :func:`register`)."""
+"""CLI commands of :mod:`artmotion.pose` (registered on the root app by :func:`register`).
+
+``artmotion pose render|train|predict|eval``; see docs/pose.md.
+"""
 
 from __future__ import annotations
 
+import json
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
 import typer
+
+from artmotion.errors import InputError
+
+pose_app = typer.Typer(
+    name="pose",
+    help="Joint angles of an articulated tool from its bounding-box crop (GP regression + Kalman filter).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+@pose_app.command("render")
+def render_cmd(
+    out: Path = typer.Argument(..., help="Output folder: crops/, labels.csv, frames/, boxes.csv."),
+    poses: int = typer.Option(4000, "--poses", help="Number of frames (poses) of the sequence."),
+    seed: int = typer.Option(0, "--seed", help="Random seed; a seed always gives the same images."),
+    dark: bool = typer.Option(False, "--dark", help="Render a low-light sequence."),
+    frames: bool = typer.Option(True, "--frames/--no-frames", help="Also write whole frames and boxes.csv."),
+):
+    """Render a pick-and-place sequence of a two-jaw grasper seen by an endoscope."""
+    from artmotion.pose.render import write_dataset
+
+    t = time.perf_counter()
+    write_dataset(out, poses, seed, dark, frames, progress=True)
+    typer.echo(f"wrote {poses} crops and labels to {out} ({time.perf_counter() - t:.1f} s)")
+
+
+@pose_app.command("train")
+def train_cmd(
+    images: Path = typer.Argument(..., help="Folder of crops (any size)."),
+    labels: Path = typer.Argument(..., help="CSV 'image,<angle name>,...' in degrees."),
+    model: Path = typer.Option(..., "--model", help="Model file to write (.npz)."),
+    feature: str = typer.Option("hog", "--feature", help="hog or lbp."),
+    method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
+    inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
+    seed: int = typer.Option(0, "--seed"),
+):
+    """Learn one Gaussian process per angle from labelled crops."""
+    from artmotion.pose.data import load_labelled
+    from artmotion.pose.model import PoseRegressor
+
+    if feature not in ("hog", "lbp"):
+        raise InputError(f"unknown feature {feature!r}; choose hog or lbp")
+    if method not in ("auto", "exact", "sparse"):
+        raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
+    names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    t = time.perf_counter()
+    reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, seed=seed, progress=True)
+    reg.fit(imgs, Y, names)
+    reg.save(model)
+    hyp = ", ".join(f"{n}: l={h.length:.3g} sn={np.sqrt(h.sn2) * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
+    typer.echo(f"trained {reg.gp_.kind} GP on {len(Y)} crops, {reg.gp_.n_outputs} angles, feature {feature} "
+               f"({time.perf_counter() - t:.1f} s) -> {model}")
+    typer.echo(f"  {hyp}")
+
+
+@pose_app.command("predict")
+def predict_cmd(
+    model: Path = typer.Argument(..., help="Model file from 'artmotion pose train'."),
+    images: Path = typer.Argument(..., help="Folder of crops; file-name order is one sequence."),
+    out: Path = typer.Option(..., "--out", help="CSV 'image,<name>,<name>_std,...' to write."),
+    smooth: bool = typer.Option(False, "--smooth", help="Kalman-filter the sequence (Eq. 3.6-3.7)."),
+):
+    """Predict every angle (mean and standard deviation, degrees) of each crop."""
+    from artmotion.pose.data import list_images, read_images, write_predictions
+    from artmotion.pose.model import PoseRegressor
+
+    reg = PoseRegressor.load(model)
+    paths = list_images(images)
+    imgs = read_images(paths, progress=True)
+    t = time.perf_counter()
+    mean, std = reg.predict(imgs, return_std=True)
+    if smooth:
+        mean, std = reg.make_filter().filter(mean, std)
+    dt = time.perf_counter() - t
+    write_predictions(out, [p.name for p in paths], reg.names_, mean, std)
+    typer.echo(f"predicted {len(paths)} crops ({len(paths) / max(dt, 1e-9):.0f} frames/s"
+               f"{', Kalman-smoothed' if smooth else ''}) -> {out}")
+
+
+@pose_app.command("eval")
+def eval_cmd(
+    images: Path = typer.Argument(..., help="Folder of crops (one sequence in file-name order)."),
+    labels: Path = typer.Argument(..., help="Labels CSV."),
+    feature: List[str] = typer.Option(["hog", "lbp"], "--feature", help="Features to compare (repeatable)."),
+    folds: int = typer.Option(5, "--folds", help="Cross-validation folds."),
+    split: str = typer.Option("contiguous", "--split",
+                              help="contiguous: each fold an unseen block of frames; random: frames dealt at random (the usual k-fold)."),
+    dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen (dark) sequence."),
+    dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen sequence."),
+    orientation: Optional[str] = typer.Option(None, "--orientation",
+                                              help="Comma-separated Euler-angle columns of the stem (default yaw,pitch,roll when present)."),
+    euler: str = typer.Option("ZYX", "--euler", help="Euler convention of those columns (SciPy; upper case = intrinsic)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for tables (eval.md, eval.json), predictions and plots."),
+    method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
+):
+    """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
+    from artmotion.pose.data import load_labelled
+    from artmotion.pose.evaluate import Columns, cross_validate, errors, summary
+    from artmotion.pose.features import extract
+    from artmotion.pose.model import PoseRegressor
+
+    if (dark_images is None) != (dark_labels is None):
+        raise InputError("--dark-images and --dark-labels go together")
+    if split not in ("contiguous", "random"):
+        raise InputError(f"unknown split {split!r}; choose contiguous or random")
+    for f in feature:
+        if f not in ("hog", "lbp"):
+            raise InputError(f"unknown feature {f!r}; choose hog or lbp")
+    names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
+    dark = None
+    if dark_images is not None:
+        dnames, dpaths, dimgs, dY = load_labelled(dark_images, dark_labels, progress=True)
+        if dnames != names:
+            raise InputError(f"angle columns {dnames} differ from the training labels {names}", path=dark_labels)
+        dark = (dpaths, dimgs, dY)
+    results = {}
+    for f in feature:
+        t = time.perf_counter()
+        X = extract(imgs, f)
+        mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f, method=method)
+        res = summary(Y, mean, std, fmean, cols, names)
+        res["seconds"] = time.perf_counter() - t
+        if dark is not None:
+            reg = PoseRegressor(feature=f, method=method).fit(X, Y, names)
+            dm, ds = reg.predict(dark[1], return_std=True)
+            dfm, _ = reg.make_filter().filter(dm, ds)
+            dres = summary(dark[2], dm, ds, dfm, cols, names)
+            res.update({f"dark {k}": v for k, v in dres.items()})
+        results[f] = res
+        if out is not None:
+            from artmotion.pose.data import write_predictions
+
+            write_predictions(out / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
+            write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
+            if dark is not None:
+                write_predictions(out / f"dark_{f}.csv", [p.name for p in dark[0]], names, dm, ds)
+    table = format_tables(results, names, cols, dark is not None, split)
+    typer.echo(table)
+    if out is not None:
+        from artmotion.io import atomic_write
+
+        with atomic_write(out / "eval.md") as fh:
+            fh.write(table + "\n")
+        with atomic_write(out / "eval.json") as fh:
+            json.dump(results, fh, indent=1)
+
+
+def format_tables(results: dict, names, cols, dark: bool, split: str = "contiguous") -> str:
+    keys = (["orientation"] if cols.orientation else []) + [n for i, n in enumerate(names) if i in cols.others]
+    lines = [f"Cross-validation, {split} folds (mean absolute error, degrees; 'orientation' = angle between stem directions)", ""]
+    head = "| feature | " + " | ".join(keys) + " | " + " | ".join(f"{k} filtered" for k in keys) + " | all angles in 3σ |"
+    lines += [head, "|" + "---|" * (2 * len(keys) + 2)]
+    for f, r in results.items():
+        lines.append(f"| {f.upper()} | " + " | ".join(f"{r[k]:.2f}" for k in keys) + " | "
+                     + " | ".join(f"{r[k + ' filtered']:.2f}" for k in keys) + f" | {100 * r['all in 3sd']:.1f}% |")
+    lines += ["", "Fraction of frames whose true angle lies inside the predicted ±3σ band", "",
+              "| feature | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
+    for f, r in results.items():
+        lines.append(f"| {f.upper()} | " + " | ".join(f"{100 * r[n + ' in 3sd']:.1f}%" for n in names) + " |")
+    if dark:
+        lines += ["", "Unseen (dark) sequence, trained on the whole normal-light set", "", head,
+                  "|" + "---|" * (2 * len(keys) + 2)]
+        for f, r in results.items():
+            lines.append(f"| {f.upper()} | " + " | ".join(f"{r['dark ' + k]:.2f}" for k in keys) + " | "
+                         + " | ".join(f"{r['dark ' + k + ' filtered']:.2f}" for k in keys)
+                         + f" | {100 * r['dark all in 3sd']:.1f}% |")
+    return "\n".join(lines)
 
 
 def register(app: typer.Typer) -> None:
     """Add this capability's commands to the root artmotion app."""
+    app.add_typer(pose_app, name="pose")

@@ -1,0 +1,121 @@
+"""Reading crops and angle labels; writing predictions (``image,<name>,<name>_std,...``)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from artmotion.errors import InputError
+from artmotion.io import atomic_write
+
+IMAGE_EXTS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp"}
+
+
+def list_images(folder: str | os.PathLike) -> list[Path]:
+    """Image files of a folder in file-name order (one sequence)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a folder of images", path=folder)
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTS)
+    if not files:
+        raise InputError("no images in folder", path=folder)
+    return files
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None or img.size == 0:
+        raise InputError("unreadable image", path=path)
+    if img.shape[0] < 2 or img.shape[1] < 2:
+        raise InputError(f"image too small ({img.shape[1]}x{img.shape[0]})", path=path)
+    return img
+
+
+def read_images(paths: Sequence[Path], progress: bool = False) -> list[np.ndarray]:
+    it = paths
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(paths, desc="read images", unit="img", leave=False, disable=None)
+    return [read_image(p) for p in it]
+
+
+def read_labels(path: str | os.PathLike) -> tuple[list[str], list[str], np.ndarray]:
+    """``(angle names, image names, Y)`` from a CSV ``image,<angle>,...`` (any number of angles)."""
+    path = Path(path)
+    try:
+        fh = open(path, newline="", encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("labels file not found", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read labels: {exc.strerror}", path=path) from None
+    with fh:
+        try:
+            rows = list(csv.reader(fh))
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise InputError(f"not a CSV file: {exc}", path=path) from None
+    if not rows:
+        raise InputError("empty labels file", path=path, line=1)
+    header = [h.strip() for h in rows[0]]
+    if len(header) < 2 or header[0].lower() != "image":
+        raise InputError("header must be 'image,<angle name>,...'", path=path, line=1)
+    names = header[1:]
+    if any(not n for n in names) or len(set(names)) != len(names):
+        raise InputError("angle names must be non-empty and distinct", path=path, line=1)
+    images, values, seen = [], [], set()
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"expected {len(header)} columns, got {len(row)}", path=path, line=lineno)
+        name = row[0].strip()
+        if not name:
+            raise InputError("empty image name", path=path, line=lineno)
+        if name in seen:
+            raise InputError(f"duplicate image {name!r}", path=path, line=lineno)
+        seen.add(name)
+        try:
+            vals = [float(c) for c in row[1:]]
+        except ValueError:
+            raise InputError("non-numeric angle", path=path, line=lineno) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError("angle is NaN or infinite", path=path, line=lineno)
+        images.append(name)
+        values.append(vals)
+    if not images:
+        raise InputError("no label rows", path=path)
+    return names, images, np.array(values, dtype=float)
+
+
+def load_labelled(images_dir: str | os.PathLike, labels: str | os.PathLike, progress: bool = False):
+    """Crops and labels matched by file name; every image needs a label and every label an image.
+
+    Returns ``(names, paths, images, Y)`` in file-name order.
+    """
+    files = list_images(images_dir)
+    names, img_names, Y = read_labels(labels)
+    index = {n: i for i, n in enumerate(img_names)}
+    by_name = {p.name: p for p in files}
+    for p in files:
+        if p.name not in index:
+            raise InputError(f"image has no label in {labels}", path=p)
+    for n in img_names:
+        if n not in by_name:
+            raise InputError(f"labelled image {n!r} not found in {images_dir}", path=labels)
+    order = [index[p.name] for p in files]
+    return names, files, read_images(files, progress), Y[order]
+
+
+def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Sequence[str], mean: np.ndarray,
+                      std: np.ndarray) -> None:
+    with atomic_write(path) as fh:
+        fh.write("image," + ",".join(f"{n},{n}_std" for n in names) + "\n")
+        for i, img in enumerate(images):
+            vals = ",".join(f"{mean[i, k]:.4f},{std[i, k]:.4f}" for k in range(len(names)))
+            fh.write(f"{img},{vals}\n")

@@ -1,0 +1,126 @@
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from artmotion.pose.data import read_labels
+from artmotion.pose.evaluate import orientation_error
+from artmotion.pose.render import write_dataset
+
+N = 240
+
+
+@pytest.fixture(scope="module")
+def split(tmp_path_factory):
+    """Rendered crops: every 4th frame held out for testing, the rest for training."""
+    root = tmp_path_factory.mktemp("pose")
+    write_dataset(root / "all", N, seed=5, frames=False)
+    names, imgs, Y = read_labels(root / "all" / "labels.csv")
+    for part in ("train", "test"):
+        (root / part).mkdir()
+    rows = {"train": [], "test": []}
+    for i, (img, y) in enumerate(zip(imgs, Y)):
+        part = "test" if i % 4 == 2 else "train"
+        shutil.copy(root / "all" / "crops" / img, root / part / img)
+        rows[part].append(img + "," + ",".join(f"{v:.4f}" for v in y))
+    for part in rows:
+        (root / f"{part}.csv").write_text("image," + ",".join(names) + "\n" + "\n".join(rows[part]) + "\n")
+    return root
+
+
+def test_render_is_deterministic(tmp_path, run_cli):
+    for d in ("a", "b"):
+        code, out, err = run_cli("pose", "render", tmp_path / d, "--poses", 3, "--seed", 7)
+        assert code == 0, err
+    assert (tmp_path / "a" / "labels.csv").read_text() == (tmp_path / "b" / "labels.csv").read_text()
+    for name in ("000001.png", "000003.png"):
+        a = cv2.imread(str(tmp_path / "a" / "crops" / name))
+        b = cv2.imread(str(tmp_path / "b" / "crops" / name))
+        assert np.array_equal(a, b)
+    assert len(list((tmp_path / "a" / "frames").glob("*.jpg"))) == 3
+    assert (tmp_path / "a" / "boxes.csv").read_text().startswith("image,x,y,w,h\n")
+    run_cli("pose", "render", tmp_path / "c", "--poses", 3, "--seed", 8, "--no-frames")
+    assert (tmp_path / "a" / "labels.csv").read_text() != (tmp_path / "c" / "labels.csv").read_text()
+
+
+def test_train_predict_end_to_end(split, run_cli, tmp_path):
+    model = tmp_path / "m.npz"
+    code, out, err = run_cli("pose", "train", split / "train", split / "train.csv", "--model", model)
+    assert code == 0, err
+    assert "trained" in out
+    pred = tmp_path / "pred.csv"
+    code, out, err = run_cli("pose", "predict", model, split / "test", "--out", pred)
+    assert code == 0, err
+    names, imgs, P = read_labels(pred)
+    assert names == ["yaw", "yaw_std", "pitch", "pitch_std", "roll", "roll_std", "opening", "opening_std"]
+    tnames, timgs, Y = read_labels(split / "test.csv")
+    assert imgs == timgs
+    mean, std = P[:, 0::2], P[:, 1::2]
+    assert np.all(std > 0)
+    opening_err = np.abs(mean[:, 3] - Y[:, 3]).mean()
+    orient_err = orientation_error(Y[:, :3], mean[:, :3]).mean()
+    baseline = np.abs(Y[:, 3] - Y[:, 3].mean()).mean()
+    assert opening_err < 10.0 and opening_err < 0.4 * baseline, (opening_err, baseline)
+    assert orient_err < 8.0
+    assert np.mean(np.abs(mean - Y) <= 3 * std) > 0.85
+    code, out, err = run_cli("pose", "predict", model, split / "test", "--out", tmp_path / "s.csv", "--smooth")
+    assert code == 0, err
+    _, _, S = read_labels(tmp_path / "s.csv")
+    assert not np.allclose(S[:, 0::2], mean)
+
+
+def test_python_api_lbp_and_model_roundtrip(split, tmp_path):
+    from artmotion.pose.data import load_labelled
+    from artmotion.pose.model import PoseRegressor
+
+    names, _, imgs, Y = load_labelled(split / "train", split / "train.csv")
+    reg = PoseRegressor(feature="lbp", method="sparse", n_inducing=80).fit(imgs, Y, names)
+    m, s = reg.predict(imgs[:10], return_std=True)
+    reg.save(tmp_path / "lbp.npz")
+    back = PoseRegressor.load(tmp_path / "lbp.npz")
+    m2, s2 = back.predict(imgs[:10], return_std=True)
+    np.testing.assert_allclose(m, m2, atol=1e-6)
+    np.testing.assert_allclose(s, s2, atol=1e-6)
+    assert back.feature == "lbp" and back.names_ == names
+
+
+def _one_line(code, err, needle):
+    assert code == 2
+    assert err.startswith("artmotion: error:") and err.count("\n") == 1, err
+    assert needle in err, err
+
+
+def test_bad_inputs(split, run_cli, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    _one_line(*run_cli("pose", "train", empty, split / "train.csv", "--model", tmp_path / "m.npz")[::2], str(empty))
+
+    bad = tmp_path / "bad"
+    shutil.copytree(split / "test", bad)
+    victim = sorted(bad.iterdir())[0]
+    victim.write_bytes(b"not an image")
+    _one_line(*run_cli("pose", "train", bad, split / "test.csv", "--model", tmp_path / "m.npz")[::2], victim.name)
+
+    lines = (split / "test.csv").read_text().splitlines()
+    nonnum = tmp_path / "nonnum.csv"
+    nonnum.write_text("\n".join(lines[:3] + [lines[3].rsplit(",", 1)[0] + ",abc"] + lines[4:]) + "\n")
+    _one_line(*run_cli("pose", "train", split / "test", nonnum, "--model", tmp_path / "m.npz")[::2], "nonnum.csv:4")
+
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(lines[:2] + [lines[2].rsplit(",", 1)[0]] + lines[3:]) + "\n")
+    _one_line(*run_cli("pose", "train", split / "test", short, "--model", tmp_path / "m.npz")[::2], "short.csv:3")
+
+    missing = tmp_path / "missing.csv"
+    missing.write_text("\n".join(lines[:-1]) + "\n")
+    unlabelled = lines[-1].split(",")[0]
+    _one_line(*run_cli("pose", "train", split / "test", missing, "--model", tmp_path / "m.npz")[::2], unlabelled)
+
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, X=np.zeros((3, 3)))
+    _one_line(*run_cli("pose", "predict", foreign, split / "test", "--out", tmp_path / "p.csv")[::2], "foreign.npz")
+    junk = tmp_path / "junk.model"
+    junk.write_bytes(b"\x00garbage" * 10)
+    _one_line(*run_cli("pose", "predict", junk, split / "test", "--out", tmp_path / "p.csv")[::2], "junk.model")
+    assert not (tmp_path / "p.csv").exists()
+    assert not (tmp_path / "m.npz").exists()

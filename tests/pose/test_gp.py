@@ -1,0 +1,84 @@
+import numpy as np
+import pytest
+
+from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp, neg_log_marginal_likelihood, optimise_hyper, sqdist
+
+
+def _closed_form(X, y, Xs, h):
+    """Eq. 3.5 written out with explicit inverses."""
+    k = lambda A, B: h.sf2 * np.exp(-0.5 * ((A[:, None, :] - B[None, :, :]) ** 2).sum(-1) / h.length**2)
+    Kinv = np.linalg.inv(k(X, X) + h.sn2 * np.eye(len(X)))
+    Ks = k(Xs, X)
+    mean = Ks @ Kinv @ y
+    var = np.diag(k(Xs, Xs) - Ks @ Kinv @ Ks.T) + h.sn2
+    return mean, var
+
+
+def test_exact_gp_matches_closed_form():
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-3, 3, (40, 2))
+    y = np.sin(X[:, 0]) + 0.1 * rng.normal(size=40)
+    Xs = rng.uniform(-4, 4, (7, 2))
+    h = Hyper(length=1.3, sf2=0.8, sn2=0.05)
+    gp = ExactGP(X, y[:, None], [h], np.zeros(1), np.ones(1))
+    m, s = gp.predict(Xs, return_std=True)
+    mc, vc = _closed_form(X, y, Xs, h)
+    np.testing.assert_allclose(m[:, 0], mc, atol=1e-5)
+    np.testing.assert_allclose(s[:, 0] ** 2, vc, rtol=1e-4, atol=1e-6)
+
+
+def test_variance_grows_away_from_data():
+    X = np.linspace(0, 1, 20)[:, None]
+    gp = ExactGP(X, np.sin(X), [Hyper(0.3, 1.0, 0.01)], np.zeros(1), np.ones(1))
+    _, s = gp.predict(np.array([[0.5], [3.0]]), return_std=True)
+    assert s[0, 0] < 0.2 and s[1, 0] > 0.95  # prior std far away (sqrt(sf2 + sn2))
+
+
+def test_sparse_with_all_points_inducing_equals_exact():
+    rng = np.random.default_rng(2)
+    X = rng.normal(size=(30, 3))
+    Y = np.stack([X[:, 0] ** 2, np.cos(X[:, 1])], 1)
+    hs = [Hyper(1.5, 1.0, 0.1), Hyper(0.9, 2.0, 0.02)]
+    ex = ExactGP(X, Y, hs, np.zeros(2), np.ones(2))
+    sp = SparseGP(X, Y, hs, np.zeros(2), np.ones(2), np.arange(30))
+    Xs = rng.normal(size=(9, 3))
+    (m1, s1), (m2, s2) = ex.predict(Xs, True), sp.predict(Xs, True)
+    np.testing.assert_allclose(m1, m2, atol=2e-3)
+    np.testing.assert_allclose(s1, s2, atol=2e-3)
+
+
+def test_nlml_gradient_matches_finite_differences():
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(25, 2))
+    y = rng.normal(size=25)
+    D2 = sqdist(X, X)
+    th = np.array([0.2, -0.1, -1.0])
+    _, g = neg_log_marginal_likelihood(th, D2, y)
+    eps = 1e-5
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = eps
+        fd = (neg_log_marginal_likelihood(th + e, D2, y)[0] - neg_log_marginal_likelihood(th - e, D2, y)[0]) / (2 * eps)
+        assert g[i] == pytest.approx(fd, rel=1e-4, abs=1e-6)
+
+
+def test_hyperparameters_recover_noise_level():
+    rng = np.random.default_rng(4)
+    X = rng.uniform(0, 10, (300, 1))
+    y = np.sin(X[:, 0]) + rng.normal(0, 0.3, 300)
+    h = optimise_hyper(sqdist(X, X), y, restarts=2)
+    assert 0.05 < h.sn2 < 0.15  # true 0.09
+    assert 0.5 < h.length < 3.0
+
+
+def test_fit_gp_predicts_in_original_units():
+    rng = np.random.default_rng(5)
+    X = rng.uniform(0, 6, (150, 1))
+    Y = np.stack([100 + 20 * np.sin(X[:, 0]), -5 * X[:, 0]], 1) + rng.normal(0, 0.5, (150, 2))
+    for method in ("exact", "sparse"):
+        gp = fit_gp(X, Y, method=method, n_inducing=60, n_opt=150, restarts=1)
+        Xs = np.linspace(0.5, 5.5, 20)[:, None]
+        m, s = gp.predict(Xs, return_std=True)
+        truth = np.stack([100 + 20 * np.sin(Xs[:, 0]), -5 * Xs[:, 0]], 1)
+        assert np.abs(m - truth).max() < 1.5
+        assert np.all(s > 0.2) and np.all(s < 2.0)

@@ -35,11 +35,10 @@ $(VENV)/.stamp-install: pyproject.toml
 
 install: system-deps $(VENV)/.stamp-install
 
+# The main job on the shipped sample: track, describe, score, report.
 demo: install
-	$(VENV)/bin/artmotion track $(SAMPLE) --out $(DEMO_OUT)/results.txt \
-	  --events $(DEMO_OUT)/events.jsonl --video $(DEMO_OUT)/annotated.mp4
-	$(VENV)/bin/artmotion eval $(SAMPLE)/gt/gt.txt $(DEMO_OUT)/results.txt
-	$(VENV)/bin/artmotion describe $(DEMO_OUT)/results.txt --events $(DEMO_OUT)/events.jsonl
+	$(VENV)/bin/artmotion run $(SAMPLE) --out $(DEMO_OUT) --index $(DEMO_OUT)/index.sqlite
+	@echo "open $(DEMO_OUT)/report.html in a browser; annotated video: $(DEMO_OUT)/annotated.mp4"
 
 test: install
 	$(PY) -m pytest -q

@@ -80,3 +80,65 @@ def test_bad_parameters():
         OnlineEstimator(threshold=1.5)
     with pytest.raises(InputError):
         OnlineEstimator(min_samples=1)
+
+
+def _still_then_arc(n_still=60, n_move=150, noise=0.001, seed=0):
+    """A gripper that holds still (door not yet moving), then opens a door of radius 0.35 m."""
+    rng = np.random.default_rng(seed)
+    th = np.concatenate([np.zeros(n_still), np.linspace(0, 1.2, n_move)])
+    X = np.column_stack([0.35 * np.cos(th), 0.35 * np.sin(th), 0 * th])
+    return X + rng.normal(0, noise, X.shape)
+
+
+def test_static_is_confirmed_for_as_long_again():
+    # a point that stays still: "static" passes tau at k0 and is decided only from 2 k0 on
+    est = OnlineEstimator()
+    X = _track("static", n=150, seed=2)
+    for k in range(len(X)):
+        est.update(X[k])
+    h = np.nan_to_num(np.array(est.history)[:, est.names.index("static")])
+    k0 = int(np.flatnonzero(h <= est.threshold)[-1] + 1)  # start of the final run above tau
+    res = est.result()
+    assert res.model == "static"
+    assert res.decided_at == 2 * k0 and res.first_decision == ("static", 2 * k0)
+    # without the confirmation the decision comes as soon as static passes tau
+    raw = estimate_online(X, confirm_static=False)
+    assert raw.first_decision[1] <= k0 and raw.decided_at == k0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_still_start_is_not_first_decided_static(seed):
+    # still for 40 samples: "static" passes tau after ~25, the door moves before that is confirmed
+    X = _still_then_arc(n_still=40, seed=seed)
+    res = estimate_online(X)
+    assert res.model == "revolute" and not res.revised, res.first_decision
+    raw = estimate_online(X, confirm_static=False)
+    assert raw.model == "revolute" and raw.first_decision[0] == "static"  # what the rule prevents
+
+
+def test_fast_filter_path_matches_the_ekf_equations():
+    """The scalar constant-velocity path is the EKF of Eq. 4.13-4.14 with H = J e_0^T."""
+    from artmotion.articulation.models import make_model
+    from artmotion.articulation.online import _ModelFilter
+
+    X = _track("revolute", n=60, noise=0.002, seed=4)
+    for name in ("prismatic", "revolute"):
+        model = make_model(name).fit(X)
+        f = _ModelFilter(model, 2)
+        f.start(X[:10], np.ones(9), 0.005, 0.00025)
+        x, P = f.x.copy(), f.P.copy()
+        r2, var, dt = 0.005**2, 0.00025**2 / (model.radius**2 if name == "revolute" else 1.0), 1.0
+        F = np.array([[1.0, dt], [0.0, 1.0]])
+        B = np.array([0.5 * dt * dt, dt])
+        for z in X[10:]:
+            ll = f.step(z, dt, 0.005, 0.00025)
+            x = F @ x
+            P = F @ P @ F.T + var * np.outer(B, B)
+            H = np.column_stack([model.jacobian1(x[0]), np.zeros(3)])
+            y = z - model.predict1(x[0])
+            S = H @ P @ H.T + r2 * np.eye(3)
+            K = P @ H.T @ np.linalg.inv(S)
+            x, P = x + K @ y, P - K @ H @ P
+            expect = -0.5 * (3 * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + y @ np.linalg.solve(S, y))
+            assert abs(ll - expect) < 1e-6 * max(1.0, abs(expect))
+        assert np.allclose(f.x, x, rtol=1e-7, atol=1e-10) and np.allclose(f.P, P, rtol=1e-6, atol=1e-14)

@@ -29,6 +29,6 @@ def test_every_log_classified_and_decided_early():
         if truth == "revolute":
             radii[log.parent.name].append(res.configuration["radius"])
     assert np.median(fractions) <= 0.30
-    assert np.mean(revised) <= 0.2  # a wrong first decision, corrected later, stays rare
+    assert sum(revised) <= 2  # a wrong first decision, corrected later, stays rare (2 / 30 drawers)
     for name, r in radii.items():
         assert np.abs(np.array(r) - np.median(r)).max() <= 0.03, (name, r)

@@ -56,15 +56,25 @@ def _unit(v) -> np.ndarray:
     return v / n if n > 0 else v
 
 
+def _cross3(a, b) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ~20x more for one pair)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _orthonormal_to(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = _unit(np.cross(n, a))
-    return u, np.cross(n, u)
+    u = _unit(_cross3(n, a))
+    return u, _cross3(n, u)
 
 
-def fit_circle_2d(P: np.ndarray) -> tuple[np.ndarray, float]:
+def fit_circle_2d(P: np.ndarray, init: tuple | None = None) -> tuple[np.ndarray, float]:
     """Circle through 2-D points: algebraic (Kasa) fit, refined by Gauss-Newton on the geometric
     distance. Linear in ``(cx, cy, r^2 - |c|^2)`` — the "separate" estimate of Table 4.1.
+
+    ``init``: a previous circle ``(centre, radius)``; Gauss-Newton starts from it instead of the
+    algebraic fit when its geometric cost is lower (re-fits as samples arrive converge in fewer steps).
     """
     P = np.asarray(P, dtype=float)
     mu = P.mean(axis=0)
@@ -76,24 +86,51 @@ def fit_circle_2d(P: np.ndarray) -> tuple[np.ndarray, float]:
     sol, *_ = np.linalg.lstsq(A, b, rcond=None)
     c = sol[:2]
     r = math.sqrt(max(sol[2] + c @ c, 1e-24))
-    # geometric refinement (a few Gauss-Newton steps; stop if the radius explodes = a line)
+    if init is not None and np.all(np.isfinite(init[0])) and 0.0 < init[1] < 1e6 * scale:
+        ci = (np.asarray(init[0], dtype=float) - mu) / scale
+        ri = float(init[1]) / scale
+
+        def cost(cc, rr):
+            return float(np.sum((np.sqrt(((Q - cc) ** 2).sum(axis=1)) - rr) ** 2))
+
+        if cost(ci, ri) < cost(c, r):
+            c, r = ci, ri
+    # geometric refinement (a few Gauss-Newton steps; stop if the radius explodes = a line);
+    # J^T J and J^T res from sums over the points (J rows: -(d / rho), -1)
+    qx, qy = np.ascontiguousarray(Q[:, 0]), np.ascontiguousarray(Q[:, 1])
+    n = float(len(Q))
+    cx, cy = float(c[0]), float(c[1])
     for _ in range(10):
-        d = Q - c
-        rho = np.sqrt((d**2).sum(axis=1))
-        if np.any(rho < 1e-12) or r > 1e6:
+        dx = qx - cx
+        dy = qy - cy
+        rho = np.sqrt(dx * dx + dy * dy)
+        if rho.min() < 1e-12 or r > 1e6:
             break
+        ux = dx / rho
+        uy = dy / rho
         res = rho - r
-        J = np.empty((len(Q), 3))
-        J[:, :2] = -d / rho[:, None]
-        J[:, 2] = -1.0
-        try:
-            step = np.linalg.solve(J.T @ J, -(J.T @ res))
-        except np.linalg.LinAlgError:
+        # normal equations (J^T J) step = -J^T res with J = -[u, 1]: a symmetric 3x3 system in floats
+        a11, a12, a13 = float(ux @ ux), float(ux @ uy), float(ux.sum())
+        a22, a23, a33 = float(uy @ uy), float(uy.sum()), n
+        b1, b2, b3 = float(ux @ res), float(uy @ res), float(res.sum())
+        c11 = a22 * a33 - a23 * a23
+        c12 = a13 * a23 - a12 * a33
+        c13 = a12 * a23 - a13 * a22
+        det = a11 * c11 + a12 * c12 + a13 * c13
+        if not abs(det) > 1e-300:
             break
-        c = c + step[:2]
-        r = abs(r + step[2])
-        if np.abs(step).max() < 1e-7:
+        c22 = a11 * a33 - a13 * a13
+        c23 = a12 * a13 - a11 * a23
+        c33 = a11 * a22 - a12 * a12
+        s0 = (c11 * b1 + c12 * b2 + c13 * b3) / det
+        s1 = (c12 * b1 + c22 * b2 + c23 * b3) / det
+        s2 = (c13 * b1 + c23 * b2 + c33 * b3) / det
+        cx += s0
+        cy += s1
+        r = abs(r + s2)
+        if max(abs(s0), abs(s1), abs(s2)) < 1e-7:
             break
+    c = np.array([cx, cy])
     return mu + c * scale, r * scale
 
 
@@ -239,7 +276,7 @@ class RevoluteModel(PointModel):
     @property
     def v(self):
         if getattr(self, "_v", None) is None:
-            self._v = np.cross(self.axis, self.u)
+            self._v = _cross3(self.axis, self.u)
         return self._v
 
     def fit(self, X):
@@ -252,18 +289,22 @@ class RevoluteModel(PointModel):
             n = Vt[2]
         e1, e2 = _orthonormal_to(n)
         P = np.column_stack([(X - mu) @ e1, (X - mu) @ e2])
-        c2, r = fit_circle_2d(P)
+        init = None
+        if getattr(self, "warm", False) and self.centre is not None and self.radius is not None:
+            d = self.centre - mu
+            init = (np.array([d @ e1, d @ e2]), self.radius)
+        c2, r = fit_circle_2d(P, init)
         centre = mu + c2[0] * e1 + c2[1] * e2
         # orient the axis so that the angle grows along the track (right-hand rule)
         a0 = X[0] - centre
         a1 = X[-1] - centre
-        if np.cross(a0, a1) @ n < 0:
+        if _cross3(a0, a1) @ n < 0:
             n = -n
         u = a0 - (a0 @ n) * n
         if np.linalg.norm(u) < 1e-12:
             u = _orthonormal_to(n)[0]
         self.centre, self.axis, self.radius, self.u = centre, n, float(r), _unit(u)
-        self._v = np.cross(self.axis, self.u)
+        self._v = _cross3(self.axis, self.u)
         return self
 
     @property
@@ -318,7 +359,7 @@ class PlanarModel(PointModel):
         else:
             _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
             n, self.u = Vt[2], Vt[0]
-            self.v = np.cross(n, self.u)
+            self.v = _cross3(n, self.u)
         self.origin = mu + ((X[0] - mu) @ self.u) * self.u + ((X[0] - mu) @ self.v) * self.v
         self.normal = n
         return self

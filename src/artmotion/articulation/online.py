@@ -12,7 +12,7 @@ All models are scored in the *same observation space* (3-D point positions with 
 the point, ``sigma_a`` in length/step^2, is ``sigma_a / r`` in angle for a revolute joint), so a
 model with more freedom is not favoured by a different scale. Because configurations fitted from
 7 samples are poor (a short arc is nearly a line), every model re-fits its configuration as
-samples arrive (at every sample while few, then each time the count grows by 10 %) and restarts its
+samples arrive (each time the count grows by 10 %, at least by one sample) and restarts its
 filter on the recent window; the model probabilities carry on.
 
 The noise ``sigma`` is ``max(noise_floor, sigma_hat)`` where ``sigma_hat`` is a robust (median
@@ -31,6 +31,17 @@ evidence between them is only counted where the data can tell them apart at the 
   ``sigma``); before either, both score their mixture (Bayes factor held at 1);
 * once the line could be told from an arc but the fitted arc is not credible, the revolute
   probability counts for prismatic in the decision (the arc *is* the line at this noise).
+
+Decision. A model is decided while its probability exceeds ``tau``; "static" must in addition have
+stayed above ``tau`` for as many samples again as it took to get there (see :meth:`_decide`): the
+static model is nested in every moving one (speed zero), so the data can favour it only by Occam's
+factor and cannot refute a motion that has not started yet; the observation time is the only time
+scale available.
+
+Cost. The per-sample filter steps of the common models (static; one motion variable with constant
+velocity) run on Python floats; samples live in a growing array; a configuration re-fit computes
+each model's motion variables once (sweep and squared residuals for the separability test come from
+them) and the circle's Gauss-Newton refinement works on sums over the points.
 """
 
 from __future__ import annotations
@@ -56,19 +67,66 @@ def robust_noise(X: np.ndarray) -> float:
     X = np.asarray(X, dtype=float)
     if len(X) < 4:
         return 0.0
-    dd = np.diff(X, n=2, axis=0)
-    mad = 1.4826 * np.median(np.abs(dd - np.median(dd, axis=0)), axis=0) / math.sqrt(6.0)
+    dd = np.ascontiguousarray((X[2:] - 2.0 * X[1:-1] + X[:-2]).T)  # second differences, (3, m)
+    mad = 1.4826 * _median_rows(np.abs(dd - _median_rows(dd)[:, None])) / math.sqrt(6.0)
     return float(np.sqrt(np.mean(mad**2)))
+
+
+def _median_rows(A: np.ndarray) -> np.ndarray:
+    """``np.median(A, axis=1)`` by one partition (the same values, less overhead)."""
+    m = A.shape[1]
+    h = m // 2
+    if m % 2:
+        return np.partition(A, h, axis=1)[:, h]
+    B = np.partition(A, (h - 1, h), axis=1)
+    return 0.5 * (B[:, h - 1] + B[:, h])
 
 
 class _ModelFilter:
     """EKF on the motion variables of one fitted point model (observation = 3-D point)."""
 
     def __init__(self, model, order: int):
-        self.x = None
+        self._x = None
+        self._P = None
+        self._s = None  # scalar state of the fast paths (static: x0, x1, x2, p; cv1: q, q', p00, p01, p11)
+        self._prm = None  # the model's parameters as floats, cached between configuration fits
+        self._prm_src = None
         self.model = model
         self.order = order if model.dof > 0 else 1
         self.dof = model.dof
+
+    # the state lives in Python floats on the fast paths (no array per step); arrays on demand
+    def _sync(self):
+        s = self._s
+        if s is not None:
+            if self.dof == 0:
+                self._x = np.array(s[:3])
+                self._P = np.diag([s[3]] * 3)
+            else:
+                self._x = np.array(s[:2])
+                self._P = np.array([[s[2], s[3]], [s[3], s[4]]])
+            self._s = None
+
+    @property
+    def x(self):
+        self._sync()
+        return self._x
+
+    @x.setter
+    def x(self, value):
+        self._sync()
+        self._x = value
+        self._prm = None
+
+    @property
+    def P(self):
+        self._sync()
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._sync()
+        self._P = value
 
     def _FQ(self, dt: float, accel: float):
         if self.dof == 0:  # static: the 3-D position itself, constant
@@ -100,16 +158,26 @@ class _ModelFilter:
             var[:] = (10.0 * s) ** 2
             var[:: self.order] = (10.0 * s) ** 2
             self.P = np.diag(var)
-        for k in range(1, len(X)):
-            self.step(X[k], dts[k - 1], sigma, accel)
+        zs = np.asarray(X, dtype=float).tolist()
+        ds = np.asarray(dts, dtype=float).tolist()
+        r2 = sigma * sigma
+        if self.dof == 0:
+            for z in zs[1:]:
+                self._step_static(z, r2)
+        elif self.dof == 1 and self.order == 2:
+            self._filter_cv1(zs[1:], ds, r2, accel)
+        else:
+            for k in range(1, len(X)):
+                self.step(X[k], dts[k - 1], sigma, accel)
 
     def step(self, z: np.ndarray, dt: float, sigma: float, accel: float) -> float:
         """Predict over ``dt``, fuse point ``z``; returns the innovation log-likelihood."""
         r2 = sigma * sigma
         if self.dof == 0:
-            return self._step_static(z, r2)
+            return self._step_static(z.tolist() if isinstance(z, np.ndarray) else z, r2)
         if self.dof == 1 and self.order == 2:
-            return self._step_cv1(z, dt, r2, accel)
+            return self._step_cv1(z.tolist() if isinstance(z, np.ndarray) else z, dt, r2, accel)
+        z = np.asarray(z, dtype=float)
         F, Q = self._FQ(dt, accel)
         x = F @ self.x
         P = F @ self.P @ F.T + Q
@@ -150,38 +218,50 @@ class _ModelFilter:
 
     def _step_static(self, z, r2: float) -> float:
         """Static point: isotropic prior and noise keep ``P = p I`` (F = I, Q = 0), a scalar filter."""
-        p = self.P[0, 0]
-        x0, x1, x2 = self.x.tolist()
-        z0, z1, z2 = z.tolist() if isinstance(z, np.ndarray) else z
+        s = self._s
+        if s is None:
+            x0, x1, x2 = self._x.tolist()
+            p = float(self._P[0, 0])
+        else:
+            x0, x1, x2, p = s
+        z0, z1, z2 = z
         y0, y1, y2 = z0 - x0, z1 - x1, z2 - x2
-        s = p + r2
-        g = p / s
-        self.x = np.array([x0 + g * y0, x1 + g * y1, x2 + g * y2])
-        self.P = np.diag([p - p * g] * 3)
-        return -0.5 * (3 * (_LOG2PI + math.log(s)) + (y0 * y0 + y1 * y1 + y2 * y2) / s)
+        s_ = p + r2
+        g = p / s_
+        self._s = (x0 + g * y0, x1 + g * y1, x2 + g * y2, p - p * g)
+        return -0.5 * (3 * (_LOG2PI + math.log(s_)) + (y0 * y0 + y1 * y1 + y2 * y2) / s_)
 
     def _step_cv1(self, z, dt: float, r2: float, accel: float) -> float:
         """The common case (one motion variable, constant velocity) in scalars: same maths as the
         general path (Eq. 4.13-4.14 with n = 2, rank-one EKF update)."""
-        x0, x1 = self.x
-        P = self.P
-        p00, p01, p11 = P[0, 0], P[0, 1], P[1, 1]
+        s = self._s
+        if s is None:
+            x0, x1 = self._x.tolist()
+            P = self._P
+            p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+        else:
+            x0, x1, p00, p01, p11 = s
+        m = self.model
+        src = m.origin if m.name == "prismatic" else m.centre
+        prm = self._prm
+        if prm is None or self._prm_src is not src:  # a new configuration fit makes new arrays
+            prm = self._prm = m.params
+            self._prm_src = src
         var = accel * accel
-        if self.model.name == "revolute":
-            var /= max(self.model.radius, 1e-9) ** 2
+        if m.name == "revolute":
+            var /= max(prm[3], 1e-9) ** 2
         # predict: A = [[1, dt], [0, 1]], Q = var B B^T with B = [dt^2/2, dt]
         b0, b1 = 0.5 * dt * dt, dt
         x0 = x0 + dt * x1
         p00, p01, p11 = (p00 + 2 * dt * p01 + dt * dt * p11 + var * b0 * b0,
                          p01 + dt * p11 + var * b0 * b1, p11 + var * b1 * b1)
-        z0, z1, z2 = z.tolist() if isinstance(z, np.ndarray) else z
-        m = self.model
+        z0, z1, z2 = z
         if m.name == "prismatic":
-            ox, oy, oz, dx, dy, dz = m.params
+            ox, oy, oz, dx, dy, dz = prm
             y0, y1, y2 = z0 - ox - x0 * dx, z1 - oy - x0 * dy, z2 - oz - x0 * dz
             jx, jy_, jz = dx, dy, dz
         else:
-            cx, cy, cz, r, ux, uy, uz, vx, vy, vz = m.params
+            cx, cy, cz, r, ux, uy, uz, vx, vy, vz = prm
             co, si = math.cos(x0), math.sin(x0)
             a, b = r * co, r * si
             y0, y1, y2 = z0 - cx - a * ux - b * vx, z1 - cy - a * uy - b * vy, z2 - cz - a * uz - b * vz
@@ -194,11 +274,48 @@ class _ModelFilter:
         x0 += p00 * g
         x1 += p01 * g
         c = j2 / d
-        n00, n01, n11 = p00 - c * p00 * p00, p01 - c * p00 * p01, p11 - c * p01 * p01
-        self.x = np.array([x0, x1])
-        self.P = np.array([[n00, n01], [n01, n11]])
+        self._s = (x0, x1, p00 - c * p00 * p00, p01 - c * p00 * p01, p11 - c * p01 * p01)
         maha = (yy - (p00 / d) * jy * jy) / r2
         return -0.5 * (3 * _LOG2PI + 3 * math.log(r2) + math.log(d / r2) + maha)
+
+    def _filter_cv1(self, zs, ds, r2: float, accel: float):
+        """:meth:`_step_cv1` over a window (the same arithmetic, no likelihoods): filter restarts."""
+        x0, x1 = self._x.tolist()
+        P = self._P
+        p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+        m = self.model
+        prm = self._prm = m.params
+        self._prm_src = m.origin if m.name == "prismatic" else m.centre
+        var = accel * accel
+        rev = m.name == "revolute"
+        if rev:
+            var /= max(prm[3], 1e-9) ** 2
+            cx, cy, cz, r, ux, uy, uz, vx, vy, vz = prm
+        else:
+            ox, oy, oz, dx, dy, dz = prm
+        cos, sin = math.cos, math.sin
+        for (z0, z1, z2), dt in zip(zs, ds):
+            b0, b1 = 0.5 * dt * dt, dt
+            x0 = x0 + dt * x1
+            p00, p01, p11 = (p00 + 2 * dt * p01 + dt * dt * p11 + var * b0 * b0,
+                             p01 + dt * p11 + var * b0 * b1, p11 + var * b1 * b1)
+            if rev:
+                co, si = cos(x0), sin(x0)
+                a, b = r * co, r * si
+                y0, y1, y2 = z0 - cx - a * ux - b * vx, z1 - cy - a * uy - b * vy, z2 - cz - a * uz - b * vz
+                jx, jy_, jz = -b * ux + a * vx, -b * uy + a * vy, -b * uz + a * vz
+            else:
+                y0, y1, y2 = z0 - ox - x0 * dx, z1 - oy - x0 * dy, z2 - oz - x0 * dz
+                jx, jy_, jz = dx, dy, dz
+            j2 = jx * jx + jy_ * jy_ + jz * jz
+            jy = jx * y0 + jy_ * y1 + jz * y2
+            d = r2 + p00 * j2
+            g = jy / d
+            x0 += p00 * g
+            x1 += p01 * g
+            c = j2 / d
+            p00, p01, p11 = p00 - c * p00 * p00, p01 - c * p00 * p01, p11 - c * p01 * p01
+        self._s = (x0, x1, p00, p01, p11)
 
     def predict_ahead(self, steps: int, dt: float, accel: float) -> np.ndarray:
         """Mean positions of the next ``steps`` samples (no observations)."""
@@ -276,6 +393,7 @@ class OnlineEstimator:
         window: int = 30,
         max_radius: float = 1.0,
         transfer: bool = False,
+        confirm_static: bool = True,
     ):
         if min_samples < 3:
             raise InputError("min_samples must be at least 3")
@@ -293,12 +411,16 @@ class OnlineEstimator:
         self.window = window
         self.max_radius = max_radius
         self.transfer = transfer
-        self.X: list = []
-        self.T: list = []
+        self._Xbuf = np.empty((64, 3))  # samples in a growing array (doubling): no list -> array copies
+        self._Tbuf = np.empty(64)
+        self._n = 0
         self.filters: list | None = None
         self.logp = np.zeros(len(self.names))
         self.history: list = []
         self.first_decision = None
+        self.decisions: list = []  # decided model (or None) per sample
+        self._above = None  # (model index, first sample) of the current run above tau
+        self.confirm_static = confirm_static
         self._next_refit = 0
         self.sigma = noise if noise is not None else noise_floor
         self._sep = (False, False)
@@ -308,23 +430,65 @@ class OnlineEstimator:
 
     # -- helpers
     @property
+    def X(self) -> np.ndarray:
+        """The samples so far, ``(n, 3)`` (a view: copy it to keep it)."""
+        return self._Xbuf[: self._n]
+
+    @property
+    def T(self) -> np.ndarray:
+        """Their times, ``(n,)``."""
+        return self._Tbuf[: self._n]
+
+    @property
     def probabilities(self) -> dict:
         """Model probabilities ``mu_j(k)`` (Eq. 4.16), as used for the decision: once the motion is
         long enough to tell a line from an arc but the fitted arc is not credible (see
         :meth:`_separable`), the revolute hypothesis *is* the line and its mass goes to prismatic."""
-        p = np.exp(self.logp - self.logp.max())
-        p /= p.sum()
+        return dict(zip(self.names, self._probs()))
+
+    def _probs(self) -> list:
+        lp = self.logp.tolist()
+        m = max(lp)
+        p = [math.exp(v - m) for v in lp]
+        tot = sum(p)
+        p = [v / tot for v in p]
         if self._rev is not None and self._pri is not None and self.filters is not None:
             rev_ok, pri_ok = self._sep
             if pri_ok and not rev_ok:
                 p[self._pri] += p[self._rev]
                 p[self._rev] = 0.0
-        return dict(zip(self.names, p))
+        return p
+
+    @property
+    def decision(self) -> str | None:
+        """The model decided at the latest sample (None: undecided); see :meth:`_decide`."""
+        return self.decisions[-1] if self.decisions else None
+
+    def _decide(self, p: list, k: int) -> str | None:
+        """The decision rule on the probabilities ``p`` of sample ``k``.
+
+        A model is decided while its probability exceeds ``tau``, except "static", which must also
+        have stayed above ``tau`` for at least as many samples as were seen before it got there
+        (decided at ``k >= 2 k0`` when it passed ``tau`` at ``k0``). Static is nested in every moving
+        model (speed zero), so data can favour it only by Occam's factor and can never refute a
+        motion that has not started yet; with no time scale of the mechanism known, the observation
+        time itself is the only scale: a stillness claimed from ``k0`` samples must be confirmed by
+        as long again.
+        """
+        j = max(range(len(p)), key=p.__getitem__)
+        if not p[j] > self.threshold:
+            self._above = None
+            return None
+        if self._above is None or self._above[0] != j:
+            self._above = (j, k)
+        if j == self._static and self.confirm_static and k < 2 * self._above[1]:
+            return None
+        return self.names[j]
 
     def _sigma(self) -> float:
         if self.noise is not None:
             return float(self.noise)
-        return max(self.noise_floor, robust_noise(np.asarray(self.X[-500:])))
+        return max(self.noise_floor, robust_noise(self.X[-500:]))
 
     def _accel(self, sigma: float) -> float:
         return 0.05 * sigma if self.accel is None else float(self.accel)
@@ -348,20 +512,21 @@ class OnlineEstimator:
         if rev_ok:
             # and the arc must explain the points significantly better than the line: the drop in
             # squared residuals (in noise units) beats chi^2 with 2 degrees of freedom at 0.1 %
-            X = np.asarray(self.X)
-            rss_line = float(np.sum(self.filters[self._pri].model.residuals(X) ** 2))
-            rss_arc = float(np.sum(rev.model.residuals(X) ** 2))
+            rss_line = self.filters[self._pri].rss
+            rss_arc = rev.rss
             rev_ok = (rss_line - rss_arc) / self.sigma**2 > 13.8
         pri_ok = travel >= math.sqrt(8.0 * self.sigma * rmax)
         return rev_ok, pri_ok
 
     def _fit_all(self):
-        X = np.asarray(self.X)
-        T = np.asarray(self.T)
+        X = self.X
+        T = self.T
         self.sigma = self._sigma()
         a = self._accel(self.sigma)
         if self.filters is None:
             self.filters = [_ModelFilter(make_model(n, self.dim), self.order) for n in self.names]
+            for f in self.filters:
+                f.model.warm = True  # circle re-fits start from the previous circle when it fits better
         w = max(self.min_samples, min(self.window, len(X)))
         for f in self.filters:
             started = getattr(f, "x", None) is not None
@@ -377,6 +542,7 @@ class OnlineEstimator:
                 f.model.fit(X)
                 qs = f.model.motion(X)[:, 0]
                 f.swept = float(np.ptp(qs))
+                f.rss = float(np.sum((X - f.model.predict(qs)) ** 2))
                 q_new = float(f.model.motion(p_old[None, :])[0, 0])
                 if f.model.name == "revolute":
                     q_new = qs[-1] + math.remainder(q_new - qs[-1], 2.0 * math.pi)
@@ -386,12 +552,17 @@ class OnlineEstimator:
                 f.P = f.P * (s_ * s_)
                 continue
             f.model.fit(X)
-            f.swept = float(np.ptp(f.model.motion(X))) if f.model.dof == 1 else 0.0
+            if f.model.dof == 1:
+                q = f.model.motion(X)
+                f.swept = float(np.ptp(q))
+                f.rss = float(np.sum((X - f.model.predict(q)) ** 2))  # squared residuals, for _separable
+            else:
+                f.swept = 0.0
             f.start(X[-w:], np.diff(T[-w:]), self.sigma, a)
         if self._rev is not None and self._pri is not None:
             self._sep = self._separable()
         k = len(X)
-        self._next_refit = k + 1 if k < 30 else int(math.ceil(k * 1.1))
+        self._next_refit = max(k + 1, int(math.ceil(k * 1.1)))  # geometric schedule: O(log n) re-fits
 
     # -- the algorithm
     def update(self, z, t: float | None = None) -> dict:
@@ -399,22 +570,29 @@ class OnlineEstimator:
         z = np.asarray(z, dtype=float).reshape(-1)
         if z.shape[0] == 2:
             z = np.array([z[0], z[1], 0.0])
-        t = float(len(self.X)) if t is None else float(t)
-        if self.T and not t > self.T[-1]:
+        k = self._n
+        t = float(k) if t is None else float(t)
+        if k and not t > self._Tbuf[k - 1]:
             raise InputError("time stamps must increase")
-        k = len(self.X)
-        self.X.append(z)
-        self.T.append(t)
+        if k == len(self._Tbuf):
+            self._Xbuf = np.concatenate([self._Xbuf, np.empty_like(self._Xbuf)])
+            self._Tbuf = np.concatenate([self._Tbuf, np.empty_like(self._Tbuf)])
+        self._Xbuf[k] = z
+        self._Tbuf[k] = t
+        self._n = k + 1
         if k + 1 < self.min_samples:
             self.history.append(np.full(len(self.names), np.nan))
+            self.decisions.append(None)
             return {}
         if self.filters is None:
             self._fit_all()  # Estimate C_j, Estimate Temporal Structure
         else:
-            dt = t - self.T[-2]
+            dt = t - self._Tbuf[k - 1]
             a = self._accel(self.sigma)
-            ll = np.array([f.step(z, dt, self.sigma, a) for f in self.filters])
-            if self._static is not None and self._rev is not None and self.filters[self._rev].model.radius < self.sigma:
+            zl = z.tolist()
+            sig = self.sigma
+            ll = [f.step(zl, dt, sig, a) for f in self.filters]
+            if self._static is not None and self._rev is not None and self.filters[self._rev].model.radius < sig:
                 # a "circle" smaller than the noise is a static point, not evidence of rotation
                 ll[self._rev] = min(ll[self._rev], ll[self._static])
             if self._rev is not None and self._pri is not None:
@@ -422,24 +600,27 @@ class OnlineEstimator:
                 r, p = ll[self._rev], ll[self._pri]
                 if not (rev_ok or pri_ok):
                     # line and arc not yet told apart: both score their mixture (Bayes factor 1)
-                    ll[self._rev] = ll[self._pri] = np.logaddexp(r, p) - math.log(2.0)
+                    hi = max(r, p)
+                    ll[self._rev] = ll[self._pri] = hi + math.log1p(math.exp(min(r, p) - hi)) - math.log(2.0)
                 elif not rev_ok:
                     ll[self._rev] = min(r, p)
                 elif not pri_ok:
                     ll[self._pri] = min(r, p)
-            self.logp = self.logp + ll  # Eq. 4.16 in log space
-            self.logp -= self.logp.max()
-            if self.refit and len(self.X) >= self._next_refit:
+            lp = [u + v for u, v in zip(self.logp.tolist(), ll)]  # Eq. 4.16 in log space
+            m = max(lp)
+            self.logp = np.array([v - m for v in lp])
+            if self.refit and self._n >= self._next_refit:
                 self._fit_all()
-        probs = self.probabilities
-        p = np.array([probs[n] for n in self.names])
-        self.history.append(p)
-        if self.first_decision is None and p.max() > self.threshold:
-            self.first_decision = (self.names[int(p.argmax())], k)
-        return probs
+        p = self._probs()
+        self.history.append(np.array(p))
+        d = self._decide(p, k)
+        self.decisions.append(d)
+        if self.first_decision is None and d is not None:
+            self.first_decision = (d, k)
+        return dict(zip(self.names, p))
 
     def result(self, horizon: int = 5) -> OnlineResult:
-        n = len(self.X)
+        n = self._n
         hist = np.array(self.history) if self.history else np.zeros((0, len(self.names)))
         dim = self.dim
         if self.filters is None:
@@ -447,14 +628,15 @@ class OnlineEstimator:
                                 self.names, {}, np.zeros((n, 0)), np.zeros((0, dim)), self.sigma, n, dim)
         probs = self.probabilities
         best = int(np.argmax([probs[m] for m in self.names]))
-        model = self.names[best] if probs[self.names[best]] > self.threshold else None
+        model = self.decision
         decided_at = None
         if model is not None:
-            above = np.nan_to_num(hist[:, best], nan=0.0) > self.threshold
-            below = np.flatnonzero(~above)
-            decided_at = int(below[-1] + 1) if below.size else 0
-        X = np.asarray(self.X)
-        T = np.asarray(self.T)
+            best = self.names.index(model)
+            decided_at = len(self.decisions)
+            while decided_at > 0 and self.decisions[decided_at - 1] == model:
+                decided_at -= 1
+        X = self.X
+        T = self.T
         fits = {}
         for f in self.filters:  # final configurations from all samples
             f.model.fit(X)

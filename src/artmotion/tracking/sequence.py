@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import configparser
 import os
+import queue
 import re
+import threading
 from pathlib import Path
 from typing import Iterator
 
@@ -60,8 +62,18 @@ class Sequence:
         return (f"Sequence({self.name!r}, {self.length} frames, {self.width}x{self.height}, "
                 f"{self.fps:g} fps)")
 
-    def frames(self) -> Iterator[tuple[int, np.ndarray]]:
-        """Yield ``(frame_number, BGR uint8 image)`` with 1-based, consecutive frame numbers."""
+    def frames(self, prefetch: int = 8) -> Iterator[tuple[int, np.ndarray]]:
+        """Yield ``(frame_number, BGR uint8 image)`` with 1-based, consecutive frame numbers.
+
+        A background thread decodes up to ``prefetch`` frames ahead (OpenCV releases the GIL
+        while decoding), so decoding overlaps the caller's work; ``prefetch=0`` reads in line.
+        """
+        if prefetch <= 0:
+            yield from self._read()
+            return
+        yield from _prefetched(self._read(), prefetch)
+
+    def _read(self) -> Iterator[tuple[int, np.ndarray]]:
         if self.images is not None:
             for i, p in enumerate(self.images, start=1):
                 img = cv2.imread(str(p), cv2.IMREAD_COLOR)
@@ -90,6 +102,47 @@ class Sequence:
                 raise InputError("video has no decodable frames", path=self.video)
         finally:
             cap.release()
+
+
+_DONE = object()
+
+
+def _prefetched(items: Iterator, depth: int) -> Iterator:
+    """Iterate ``items`` in a daemon thread, ``depth`` ahead; its exceptions re-raise here."""
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+
+    def put(x) -> bool:
+        while not stop.is_set():
+            try:
+                q.put(x, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def work() -> None:
+        try:
+            for x in items:
+                if not put((x, None)):
+                    return
+            put((_DONE, None))
+        except BaseException as exc:  # handed to the consumer
+            put((_DONE, exc))
+
+    thread = threading.Thread(target=work, name="artmotion-frames", daemon=True)
+    thread.start()
+    try:
+        while True:
+            x, exc = q.get()
+            if x is _DONE:
+                if exc is not None:
+                    raise exc
+                return
+            yield x
+    finally:
+        stop.set()
+        thread.join(timeout=5)
 
 
 def _probe_video(video: Path) -> tuple[float, int, int, int]:

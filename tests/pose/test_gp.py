@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp, neg_log_marginal_likelihood, optimise_hyper, sqdist
+from artmotion.pose.gp import ExactGP, Hyper, SparseGP, choose_inducing, fit_gp, neg_log_marginal_likelihood, optimise_hyper, sqdist
 
 
 def _closed_form(X, y, Xs, h):
@@ -82,3 +82,35 @@ def test_fit_gp_predicts_in_original_units():
         truth = np.stack([100 + 20 * np.sin(Xs[:, 0]), -5 * Xs[:, 0]], 1)
         assert np.abs(m - truth).max() < 1.5
         assert np.all(s > 0.2) and np.all(s < 2.0)
+
+
+def test_kmeans_inducing_are_unique_rows_spread_over_clusters():
+    rng = np.random.default_rng(5)
+    # 90 % of the rows in one tight cluster, 10 % spread over 9 others: Lloyd's iterations start
+    # from the random subset and never lose a cluster it covers
+    centres = rng.normal(scale=10.0, size=(10, 4))
+    lab = np.r_[np.zeros(450, int), np.repeat(np.arange(1, 10), 6)]
+    X = centres[lab] + 0.01 * rng.normal(size=(len(lab), 4))
+    idx = choose_inducing(X, 10, np.random.default_rng(0), "kmeans")
+    assert len(idx) == 10 and len(np.unique(idx)) == 10 and np.all(np.diff(idx) > 0)
+    rnd = choose_inducing(X, 10, np.random.default_rng(0), "random")
+    assert len(np.unique(rnd)) == 10
+    assert set(lab[rnd]) <= set(lab[idx])
+    # k-means lowers the quantisation error (mean squared distance to the nearest inducing input)
+    x = rng.normal(size=(600, 3)) * np.array([3.0, 1.0, 0.3])
+    qerr = lambda i: sqdist(x, x[i]).min(1).mean()
+    for seed in range(3):
+        assert qerr(choose_inducing(x, 30, np.random.default_rng(seed))) < qerr(choose_inducing(x, 30, np.random.default_rng(seed), "random"))
+    np.testing.assert_array_equal(choose_inducing(X[:7], 10, np.random.default_rng(0)), np.arange(7))
+    with pytest.raises(ValueError):
+        choose_inducing(X, 10, np.random.default_rng(0), "farthest")
+
+
+def test_fit_gp_inducing_choice_both_work():
+    rng = np.random.default_rng(6)
+    X = rng.uniform(-2, 2, (200, 2))
+    Y = np.sin(X[:, :1]) + 0.05 * rng.normal(size=(200, 1))
+    for how in ("kmeans", "random"):
+        gp = fit_gp(X, Y, method="sparse", n_inducing=40, n_opt=100, restarts=1, inducing=how)
+        assert isinstance(gp, SparseGP) and len(np.unique(gp.inducing)) == 40
+        assert np.abs(gp.predict(X) - Y).mean() < 0.15

@@ -206,6 +206,42 @@ class SparseGP(_BaseGP):
         return self._finish(mu, var, return_std)
 
 
+def choose_inducing(X: np.ndarray, m: int, rng: np.random.Generator, how: str = "kmeans",
+                    iters: int = 8) -> np.ndarray:
+    """Indices of ``m`` inducing inputs among the rows of ``X`` (sorted, unique).
+
+    ``how="random"``: a uniform random subset. ``"kmeans"``: a few Lloyd iterations of k-means
+    started from a random subset, then the training row nearest to each centre (so the inducing
+    inputs stay training rows and a model file only stores their indices); centres that share a
+    nearest row are topped up at random. k-means spreads the inducing inputs over the input
+    distribution instead of spending them where consecutive frames pile up.
+    """
+    n = len(X)
+    if m >= n:
+        return np.arange(n)
+    start = np.sort(rng.choice(n, size=m, replace=False))
+    if how == "random":
+        return start
+    if how != "kmeans":
+        raise ValueError(f"unknown inducing-point selection {how!r}")
+    X32 = np.ascontiguousarray(X, dtype=np.float32)
+    X2 = (X32 * X32).sum(1)
+    C = X32[start].copy()
+    for _ in range(iters):
+        assign = sqdist(X32, C, X2).argmin(1)
+        counts = np.bincount(assign, minlength=m).astype(np.float32)
+        onehot = np.zeros((n, m), dtype=np.float32)
+        onehot[np.arange(n), assign] = 1.0
+        sums = onehot.T @ X32
+        keep = counts > 0
+        C[keep] = sums[keep] / counts[keep, None]
+    idx = np.unique(sqdist(C, X32, None, X2).argmin(1))
+    if len(idx) < m:
+        rest = np.setdiff1d(np.arange(n), idx)
+        idx = np.concatenate([idx, rng.choice(rest, size=m - len(idx), replace=False)])
+    return np.sort(idx)
+
+
 def standardise(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     mean = Y.mean(0)
     std = Y.std(0)
@@ -225,6 +261,7 @@ def fit_gp(
     hypers: list[Hyper] | None = None,
     progress: bool = False,
     calibrate: float = 0.2,
+    inducing: str = "kmeans",
 ):
     """Fit one GP per column of ``Y``: hyper-parameters on a subset of ``n_opt``, then one full solve.
 
@@ -237,6 +274,9 @@ def fit_gp(
     there (never below 1). Neighbouring frames make the marginal-likelihood noise estimate
     optimistic for new stretches of motion; this puts the variance back on the scale of errors
     on unseen data.
+
+    ``inducing``: how the sparse GP picks its inducing inputs, ``"kmeans"`` (default) or
+    ``"random"`` (see :func:`choose_inducing`).
     """
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64).reshape(len(X), -1)
@@ -261,7 +301,7 @@ def fit_gp(
     def build(Xb, Yb):
         if method == "exact":
             return ExactGP(Xb, Yb, hypers, np.zeros(Yb.shape[1]), np.ones(Yb.shape[1]))
-        ind = np.sort(rng.choice(len(Xb), size=min(len(Xb), n_inducing), replace=False))
+        ind = choose_inducing(Xb, n_inducing, rng, inducing)
         return SparseGP(Xb, Yb, hypers, np.zeros(Yb.shape[1]), np.ones(Yb.shape[1]), ind)
 
     scale = np.ones(Y.shape[1])

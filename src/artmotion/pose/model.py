@@ -92,12 +92,13 @@ class PoseRegressor:
     HOG, 16 for LBP), ``size`` (crop resize, width×height), ``method`` (``"auto"``, ``"exact"``,
     ``"sparse"``), ``max_exact`` (``auto`` switches to the sparse GP above this many training
     examples), ``n_inducing``, ``n_opt`` (subset used for hyper-parameter optimisation),
-    ``restarts``, ``seed``, ``progress`` (tqdm bars).
+    ``restarts``, ``seed``, ``progress`` (tqdm bars), ``inducing`` (``"kmeans"`` or ``"random"``
+    choice of the sparse GP's inducing inputs).
     """
 
     def __init__(self, feature: str = "hog", cell: int | None = None, size: tuple[int, int] = (F.CROP_W, F.CROP_H),
                  method: str = "auto", max_exact: int = 2000, n_inducing: int = 1000, n_opt: int = 500,
-                 restarts: int = 1, seed: int = 0, progress: bool = False):
+                 restarts: int = 1, seed: int = 0, progress: bool = False, inducing: str = "kmeans"):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
         self.feature = feature
@@ -110,6 +111,7 @@ class PoseRegressor:
         self.restarts = restarts
         self.seed = seed
         self.progress = progress
+        self.inducing = inducing
         self.names_: list[str] | None = None
         self.gp_ = None
         self.accel_var_: np.ndarray | None = None
@@ -132,7 +134,7 @@ class PoseRegressor:
             raise InputError("labels contain NaN or infinite values")
         self.names_ = list(names) if names is not None else [f"angle{k}" for k in range(Y.shape[1])]
         self.gp_ = fit_gp(X, Y, self.method, self.max_exact, self.n_inducing, self.n_opt, self.restarts,
-                          self.seed, progress=self.progress)
+                          self.seed, progress=self.progress, inducing=self.inducing)
         self.accel_var_ = accel_variance(Y)
         return self
 

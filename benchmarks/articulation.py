@@ -131,7 +131,7 @@ def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/stur
     from artmotion.articulation.online import estimate_online
     from artmotion.articulation.slam import monte_carlo, plot_run
     from artmotion.articulation.temporal import compare_orders, configuration_monte_carlo, pendulum, plot_orders
-    from artmotion.io import atomic_path
+    from artmotion.io import save_figure
 
     rep = {}
     # Table 4.1
@@ -168,9 +168,7 @@ def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/stur
     fig.supxlabel("sample")
     fig.supylabel("model probability (Eq. 4.16)")
     fig.tight_layout()
-    with atomic_path(os.path.join(out_dir, "articulation_online.png")) as tmp:
-        fig.savefig(tmp, dpi=80)
-    plt.close(fig)
+    save_figure(fig, os.path.join(out_dir, "articulation_online.png"), dpi=80)
     # Sturm logs
     truth = {"dishwasher": "revolute", "drawer": "prismatic", "left_door": "revolute", "right_door": "revolute"}
     rows, radii = [], defaultdict(list)

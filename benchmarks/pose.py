@@ -25,7 +25,6 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from artmotion.pose.data import load_labelled  # noqa: E402
 from artmotion.pose.features import extract  # noqa: E402
-from artmotion.pose.gp import fit_gp  # noqa: E402
 from artmotion.pose.model import PoseFilter, PoseRegressor  # noqa: E402
 
 

@@ -1,13 +1,11 @@
 """End-to-end: the pipeline on the shipped sample, the HTML report in headless Chromium, batches."""
 
 import errno
-import json
 import os
 import shutil
 import subprocess
 
 import cv2
-import numpy as np
 import pytest
 
 from artmotion.app import EventIndex, load_run, run_batch, run_pipeline

@@ -40,10 +40,10 @@ CREATE TABLE IF NOT EXISTS events (
 CREATE TABLE IF NOT EXISTS sentences (
     id INTEGER PRIMARY KEY,
     video_id INTEGER NOT NULL REFERENCES videos(id) ON DELETE CASCADE,
-    sentence TEXT NOT NULL, subject TEXT, verb TEXT, adjective TEXT,
+    sentence TEXT NOT NULL, subject TEXT, verb TEXT, action TEXT, adjective TEXT,
     tracks TEXT NOT NULL, frame_start INTEGER, frame_end INTEGER
 );
-CREATE INDEX IF NOT EXISTS sentences_verb ON sentences(verb, adjective);
+CREATE INDEX IF NOT EXISTS sentences_action ON sentences(action);
 CREATE VIRTUAL TABLE IF NOT EXISTS sentences_fts USING fts5(sentence, sid UNINDEXED, tokenize='porter unicode61');
 """
 
@@ -182,9 +182,9 @@ class EventIndex:
             )
             for s in run["sentences"]:
                 cur = self.conn.execute(
-                    "INSERT INTO sentences(video_id, sentence, subject, verb, adjective, tracks, frame_start, frame_end)"
-                    " VALUES (?,?,?,?,?,?,?,?)",
-                    (vid, s["sentence"], s.get("subject"), s.get("verb"), s.get("adjective"),
+                    "INSERT INTO sentences(video_id, sentence, subject, verb, action, adjective, tracks, frame_start,"
+                    " frame_end) VALUES (?,?,?,?,?,?,?,?,?)",
+                    (vid, s["sentence"], s.get("subject"), s.get("verb"), _canon_verb(s.get("verb")), s.get("adjective"),
                      json.dumps(s.get("tracks", [])), s.get("frame_start"), s.get("frame_end")),
                 )
                 self.conn.execute("INSERT INTO sentences_fts(sentence, sid) VALUES (?, ?)", (s["sentence"], cur.lastrowid))
@@ -217,7 +217,7 @@ class EventIndex:
 
     def _rows(self, video: str | None, where: str = "", params: tuple = ()):
         sql = (
-            "SELECT v.name, v.run_dir, s.sentence, s.subject, s.verb, s.adjective, s.tracks, s.frame_start,"
+            "SELECT v.name, v.run_dir, s.sentence, s.subject, s.action, s.adjective, s.tracks, s.frame_start,"
             " s.frame_end, s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE 1=1"
         )
         if video is not None:
@@ -228,10 +228,10 @@ class EventIndex:
     def _structured(self, q: Query, video: str | None) -> list[Hit]:
         """Every asked-for verb and track id must hold; direction and subject add to the score."""
         hits = []
-        for name, run_dir, sentence, subject, verb, adjective, tracks, f0, f1, _ in self._rows(video):
+        where, params = (" AND s.action = ?", (q.verb,)) if q.verb is not None else ("", ())
+        for name, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
             track_ids = json.loads(tracks)
-            canon = _canon_verb(verb)
-            if (q.verb is not None and canon != q.verb) or (q.track is not None and q.track not in track_ids):
+            if q.track is not None and q.track not in track_ids:
                 continue
             direction_ok = q.direction is not None and q.direction in (adjective or "").split()
             if q.verb is None and q.direction is not None and not direction_ok:
@@ -256,12 +256,11 @@ class EventIndex:
         rank = {sid: -score for sid, score in rows}
         if not rank:
             return []
-        hits = []
-        for name, run_dir, sentence, subject, verb, adjective, tracks, f0, f1, sid in self._rows(video):
-            if sid in rank:
-                hits.append(Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), _canon_verb(verb),
-                                adjective, subject, run_dir, match="fulltext"))
-        return hits
+        where = f" AND s.id IN ({','.join('?' * len(rank))})"
+        return [Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), action, adjective, subject, run_dir,
+                    match="fulltext")
+                for name, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
+                in self._rows(video, where, tuple(rank))]
 
 
 def _canon_verb(verb: str | None) -> str | None:

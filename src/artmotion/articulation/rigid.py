@@ -120,7 +120,6 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
         # constraints leave Q undetermined. 3-D tracks are metric already, so fix the gauge by
         # the first frame instead: M_0 A = [I | 0] and b A = e_4, i.e. A = [M^_0; b]^-1.
         A = np.linalg.inv(np.vstack([Mh[[0, F, 2 * F]], b]))
-    M = Mh @ A
     S = np.linalg.solve(A, Sh)
     shape = (S[:3] / S[3]).T
     if not np.all(np.isfinite(shape)):

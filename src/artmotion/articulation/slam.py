@@ -506,7 +506,7 @@ def plot_run(world: World, sim: dict, results: dict, path, frames=(10, 100, -1))
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from artmotion.io import atomic_path
+    from artmotion.io import save_figure
 
     colours = {"static": "tab:blue", "prismatic": "tab:orange", "revolute": "tab:green"}
     fig, axes = plt.subplots(1, len(frames), figsize=(5 * len(frames), 5))
@@ -541,6 +541,4 @@ def plot_run(world: World, sim: dict, results: dict, path, frames=(10, 100, -1))
         ax.set_aspect("equal")
     np.atleast_1d(axes)[0].legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path, dpi=80)

@@ -143,13 +143,13 @@ def configuration_monte_carlo(runs: int = 500, n: int = 20, centre=(2.0, 2.0), r
 
 
 def plot_orders(t, q, truth, results: dict, path) -> None:
-    """Fig. 4.5: the filtered angle of every order against the readings (PNG via atomic_path)."""
+    """Fig. 4.5: the filtered angle of every order against the readings (PNG, written atomically)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from artmotion.io import atomic_path
+    from artmotion.io import save_figure
 
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     axes[0].plot(t, q, ".", ms=2, color="0.6", label="readings")
@@ -163,6 +163,4 @@ def plot_orders(t, q, truth, results: dict, path) -> None:
     axes[1].set_xlabel("time (s)")
     axes[1].legend(fontsize=7)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)

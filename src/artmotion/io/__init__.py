@@ -1,6 +1,6 @@
 """File formats and safe writing (MOTChallenge text, event JSON lines, atomic output)."""
 
-from artmotion.io.atomic import atomic_path, atomic_write
+from artmotion.io.atomic import atomic_path, atomic_write, save_figure
 from artmotion.io.mot import MOT_COLUMNS, read_mot, write_mot
 from artmotion.io.events import read_events, write_events
 
@@ -10,6 +10,7 @@ __all__ = [
     "atomic_write",
     "read_events",
     "read_mot",
+    "save_figure",
     "write_events",
     "write_mot",
 ]

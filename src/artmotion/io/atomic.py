@@ -61,3 +61,16 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", encoding: str | None 
                 yield fh
         except OSError as exc:
             raise InputError(f"cannot write: {exc.strerror}", path=path) from exc
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Path:
+    """Save a matplotlib figure atomically (format from the suffix, PNG by default) and close it."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **savefig_kw)
+    finally:
+        plt.close(fig)
+    return path

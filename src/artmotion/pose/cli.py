@@ -111,7 +111,7 @@ def eval_cmd(
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
     from artmotion.pose.data import load_labelled
-    from artmotion.pose.evaluate import Columns, cross_validate, errors, summary
+    from artmotion.pose.evaluate import Columns, cross_validate, summary
     from artmotion.pose.features import extract
     from artmotion.pose.model import PoseRegressor
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.io import atomic_path
+from artmotion.io import save_figure
 
 
 def _plt():
@@ -67,9 +67,7 @@ def regression_comparison(path, seed: int = 0) -> dict:
     axes[0].set_ylabel("y")
     axes[0].legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
     return out
 
 
@@ -87,9 +85,7 @@ def band_plot(path, truth, mean, std, name="opening", start=0, length=300):
     ax.set_ylabel(f"{name} (deg)")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
 
 
 def filter_plot(path, truth, raw, filtered, name="opening", start=0, length=300):
@@ -104,6 +100,4 @@ def filter_plot(path, truth, raw, filtered, name="opening", start=0, length=300)
     ax.set_ylabel(f"{name} (deg)")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)

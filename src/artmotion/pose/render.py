@@ -294,7 +294,8 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False):
     else:
         gain = _smooth_series(rng, n, 40, 0.7, 1.2)
     tint = rng.uniform(0.9, 1.1, 3).astype(np.float32)
-    shift = np.stack([_smooth_series(rng, n, 50, 0, 80), _smooth_series(rng, n, 50, 0, 60)], 1)
+    # (two series drawn and unused: kept so that a seed renders the same images as before)
+    _smooth_series(rng, n, 50, 0, 80), _smooth_series(rng, n, 50, 0, 60)
     # second tool: on in ~40 % of frames, its tip wandering around the first tool's tip
     other_on = _smooth_series(rng, n, 30, 0, 1) > 0.6
     other_off = np.stack([_smooth_series(rng, n, 25, -28, 28), _smooth_series(rng, n, 25, -22, 22)], 1)

@@ -26,7 +26,7 @@ import numpy as np
 from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
-from artmotion.io import atomic_path, atomic_write
+from artmotion.io import atomic_write, save_figure
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, read_image, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse
@@ -186,18 +186,11 @@ def _confusion(true, pred, names) -> list[list[int]]:
 # figures
 
 
-def _savefig(fig, path: Path, dpi: int = 110) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
-
-
 def save_figures(report: dict, F: dict, out: Path) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from artmotion.language.grounding.features import shape_descriptor
 
     written = []
     # Fig 5.7: a triangle's contour from 2 and 10 harmonics
@@ -211,8 +204,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
             ax.imshow(render_shape(c.ravel(), F["color"][tri[0]]))
             ax.set_title(f"{h} harmonics")
             ax.axis("off")
-        _savefig(fig, out / "fourier_harmonics.png")
-        plt.close(fig)
+        save_figure(fig, out / "fourier_harmonics.png", dpi=110, bbox_inches="tight")
         written.append("fourier_harmonics.png")
     # Fig 5.9: retrieval
     fig, axes = plt.subplots(1, 2, figsize=(7, 2.8))
@@ -223,8 +215,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
         ax.set_title(f"{concept}: correct in top 5")
         for x, v in enumerate(vals):
             ax.text(x, v + 0.02, f"{v:.2f}", ha="center")
-    _savefig(fig, out / "retrieval.png")
-    plt.close(fig)
+    save_figure(fig, out / "retrieval.png", dpi=110, bbox_inches="tight")
     written.append("retrieval.png")
     # Fig 5.8: one utterance, the image generated from it and the retrieved neighbours
     ex = report.get("_example") or {}
@@ -245,8 +236,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
             for ax in axes[r]:
                 ax.axis("off")
         fig.tight_layout()
-        _savefig(fig, out / "retrieval_example.png", dpi=72)
-        plt.close(fig)
+        save_figure(fig, out / "retrieval_example.png", dpi=72, bbox_inches="tight")
         written.append("retrieval_example.png")
     # Fig 5.10: images generated from unseen utterances
     un = report["_unseen"]
@@ -263,8 +253,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
                 ax.set_yticks([])
                 if c == 0:
                     ax.set_ylabel(model)
-        _savefig(fig, out / "unseen_renders.png")
-        plt.close(fig)
+        save_figure(fig, out / "unseen_renders.png", dpi=110, bbox_inches="tight")
         written.append("unseen_renders.png")
     # Fig 5.11: confusion matrices of recognised colour and shape on unseen pairs
     fig, axes = plt.subplots(2, 2, figsize=(10, 8.5))
@@ -283,8 +272,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
             ax.set_title(f"{model}: {concept} ({un[model][concept]:.2f})", fontsize=10)
             ax.set_xlabel("recognised")
     fig.tight_layout()
-    _savefig(fig, out / "unseen_confusion.png")
-    plt.close(fig)
+    save_figure(fig, out / "unseen_confusion.png", dpi=110, bbox_inches="tight")
     written.append("unseen_confusion.png")
     return written
 

@@ -1,10 +1,13 @@
 """Figures for docs/pose.md from the outputs of ``artmotion pose eval --out DIR``.
 
-    .venv/bin/python benchmarks/pose_figures.py out/pose/eval out/pose/normal [out/pose/dark]
+    .venv/bin/python benchmarks/pose_figures.py out/pose/eval_random out/pose/normal out/pose/test out/pose/dark
 
-Writes docs/pose_regression_comparison.png (Sec. 3.3.2), docs/pose_band.png (Fig. 3.4),
-docs/pose_filter.png (Fig. 3.6), docs/pose_dark.png (Table 3.2 / Fig. 3.8) and
-docs/pose_samples.png (rendered frames with boxes).
+(``eval`` run with ``--test-images/--test-labels`` and ``--dark-images/--dark-labels`` for those
+two renders.) Writes docs/pose_regression_comparison.png (Sec. 3.3.2), docs/pose_band.png
+(Fig. 3.4, cross-validated), docs/pose_filter.png (Fig. 3.6, on the unseen normal-light
+sequence), docs/pose_dark.png (Table 3.2 / Fig. 3.8), docs/pose_samples.png and
+docs/pose_dark_samples.png (rendered frames with boxes), and prints the frame-to-frame jitter
+of the raw and filtered estimates on the unseen sequences.
 """
 
 from __future__ import annotations
@@ -47,25 +50,26 @@ def samples(data: Path, out: Path, frames=(40, 400, 900, 1500, 2300, 3100)):
 
 
 def main():
-    ev, data = Path(sys.argv[1]), Path(sys.argv[2])
-    dark = Path(sys.argv[3]) if len(sys.argv) > 3 else None
+    ev, data, test, dark = (Path(a) for a in sys.argv[1:5])
     docs = ROOT / "docs"
     print(plots.regression_comparison(docs / "pose_regression_comparison.png"))
     names, _, Y = read_labels(data / "labels.csv")
     k = names.index("opening")
     _, _, m, s = load_pred(ev / "cv_hog.csv")
-    _, _, fm, _ = load_pred(ev / "cv_hog_filtered.csv")
-    jit = lambda P: np.abs(np.diff(P - Y, axis=0)).mean(0)  # noqa: E731  frame-to-frame error change
-    print("jitter raw     ", dict(zip(names, jit(m).round(2))))
-    print("jitter filtered", dict(zip(names, jit(fm).round(2))))
-    plots.band_plot(docs / "pose_band.png", Y[:, k], m[:, k], s[:, k], "opening", start=3300, length=300)
-    plots.filter_plot(docs / "pose_filter.png", Y[:, k], m[:, k], fm[:, k], "opening", start=3300, length=300)
+    plots.band_plot(docs / "pose_band.png", Y[:, k], m[:, k], s[:, k], "opening (cross-validated)", start=3300, length=300)
     samples(data, docs / "pose_samples.png")
-    if dark is not None and (ev / "dark_hog.csv").exists():
-        _, _, dY = read_labels(dark / "labels.csv")
-        _, _, dm, ds = load_pred(ev / "dark_hog.csv")
-        plots.band_plot(docs / "pose_dark.png", dY[:, k], dm[:, k], ds[:, k], "opening (dark, HOG)", 0, 300)
-        samples(dark, docs / "pose_dark_samples.png", (20, 150, 280))
+    for key, seq in (("test", test), ("dark", dark)):
+        _, _, tY = read_labels(seq / "labels.csv")
+        _, _, tm, ts = load_pred(ev / f"{key}_hog.csv")
+        _, _, fm, _ = load_pred(ev / f"{key}_hog_filtered.csv")
+        jit = lambda P: np.abs(np.diff(P - tY, axis=0)).mean(0)  # noqa: E731  frame-to-frame error change
+        print(key, "jitter raw     ", dict(zip(names, jit(tm).round(2))))
+        print(key, "jitter filtered", dict(zip(names, jit(fm).round(2))))
+        if key == "test":
+            plots.filter_plot(docs / "pose_filter.png", tY[:, k], tm[:, k], fm[:, k], "opening (unseen sequence)", 0, 300)
+        else:
+            plots.band_plot(docs / "pose_dark.png", tY[:, k], tm[:, k], ts[:, k], "opening (dark, HOG)", 0, 300)
+            samples(dark, docs / "pose_dark_samples.png", (20, 150, 280))
 
 
 if __name__ == "__main__":

@@ -42,6 +42,32 @@ def test_render_is_deterministic(tmp_path, run_cli):
     assert (tmp_path / "a" / "boxes.csv").read_text().startswith("image,x,y,w,h\n")
     run_cli("pose", "render", tmp_path / "c", "--poses", 3, "--seed", 8, "--no-frames")
     assert (tmp_path / "a" / "labels.csv").read_text() != (tmp_path / "c" / "labels.csv").read_text()
+    # --dark: the same motion and scene as the normal-light render of that seed, in low light
+    run_cli("pose", "render", tmp_path / "d", "--poses", 3, "--seed", 7, "--dark", "--no-frames")
+    assert (tmp_path / "a" / "labels.csv").read_text() == (tmp_path / "d" / "labels.csv").read_text()
+    light = cv2.imread(str(tmp_path / "a" / "crops" / "000002.png")).astype(float)
+    dark = cv2.imread(str(tmp_path / "d" / "crops" / "000002.png")).astype(float)
+    assert dark.shape == light.shape and dark.mean() < 0.45 * light.mean()
+
+
+def test_eval_tables_on_unseen_sequences(split, run_cli, tmp_path):
+    """``pose eval``: cross-validation, 3σ coverage, unseen normal and dark sequences and their ratio."""
+    for name, extra in (("light", []), ("dark", ["--dark"])):
+        code, _, err = run_cli("pose", "render", tmp_path / name, "--poses", 40, "--seed", 9, "--no-frames", *extra)
+        assert code == 0, err
+    code, out, err = run_cli("pose", "eval", split / "train", split / "train.csv", "--feature", "hog", "--folds", 3,
+                             "--test-images", tmp_path / "light" / "crops", "--test-labels", tmp_path / "light" / "labels.csv",
+                             "--dark-images", tmp_path / "dark" / "crops", "--dark-labels", tmp_path / "dark" / "labels.csv",
+                             "--out", tmp_path / "ev")
+    assert code == 0, err
+    res = __import__("json").loads((tmp_path / "ev" / "eval.json").read_text())["hog"]
+    for key in ("orientation", "opening", "test opening", "dark opening", "dark opening filtered", "all in 3sd"):
+        assert np.isfinite(res[key]), key
+    assert res["opening"] < 20 and res["orientation"] < 10  # far below chance on rendered crops
+    assert "Dark / normal light" in out and "random folds" in out
+    assert (tmp_path / "ev" / "dark_hog_filtered.csv").exists() and (tmp_path / "ev" / "cv_hog.csv").exists()
+    code, _, err = run_cli("pose", "eval", split / "train", split / "train.csv", "--dark-images", tmp_path / "dark" / "crops")
+    assert code == 2 and "go together" in err
 
 
 def test_train_predict_end_to_end(split, run_cli, tmp_path):
@@ -83,6 +109,23 @@ def test_python_api_lbp_and_model_roundtrip(split, tmp_path):
     np.testing.assert_allclose(m, m2, atol=1e-6)
     np.testing.assert_allclose(s, s2, atol=1e-6)
     assert back.feature == "lbp" and back.names_ == names
+
+
+def test_default_model_pca_exact_roundtrip(split, tmp_path):
+    """The default regressor (HOG, PCA, exact GP mean, local variance) survives save/load."""
+    from artmotion.pose.data import load_labelled
+    from artmotion.pose.model import PoseRegressor
+
+    names, _, imgs, Y = load_labelled(split / "train", split / "train.csv")
+    reg = PoseRegressor(n_components=16).fit(imgs, Y, names)
+    assert reg.gp_.kind == "exact" and reg.pca_components_.shape == (16, 1488)
+    m, s = reg.predict(imgs[:10], return_std=True)
+    reg.save(tmp_path / "hog.npz")
+    back = PoseRegressor.load(tmp_path / "hog.npz")
+    assert back.n_components == 16 and back.neighbours == reg.neighbours
+    m2, s2 = back.predict(imgs[:10], return_std=True)
+    np.testing.assert_allclose(m, m2, atol=1e-4)
+    np.testing.assert_allclose(s, s2, rtol=1e-4)
 
 
 def _one_line(code, err, needle):

@@ -34,6 +34,27 @@ def test_variance_grows_away_from_data():
     assert s[0, 0] < 0.2 and s[1, 0] > 0.95  # prior std far away (sqrt(sf2 + sn2))
 
 
+def test_local_variance_with_all_points_is_exact_and_an_upper_bound_otherwise():
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-3, 3, (60, 2))
+    Y = np.stack([np.sin(X[:, 0]), X[:, 1] ** 2 / 9], 1)
+    hs = [Hyper(1.0, 0.8, 0.01), Hyper(0.7, 1.5, 0.05)]
+    Xs = rng.uniform(-3.5, 3.5, (25, 2))
+    m_ex, s_ex = ExactGP(X, Y, hs, np.zeros(2), np.ones(2)).predict(Xs, True)
+    m_all, s_all = ExactGP(X, Y, hs, np.zeros(2), np.ones(2), neighbours=60).predict(Xs, True)
+    np.testing.assert_allclose(m_all, m_ex, atol=1e-8)  # the mean is always exact
+    np.testing.assert_allclose(s_all, s_ex, rtol=2e-3, atol=1e-4)
+    near = ExactGP(X, Y, hs, np.zeros(2), np.ones(2), neighbours=12)
+    m_nn, s_nn = near.predict(Xs, True)
+    np.testing.assert_allclose(m_nn, m_ex, atol=1e-8)
+    assert np.all(s_nn >= s_ex - 1e-6)  # conditioning on fewer points never shrinks the variance
+    assert np.median(s_nn / s_ex) < 1.5  # ...and the nearest points carry most of the information
+    # a model rebuilt from its alpha (as after loading) predicts the same without the O(n^3) solve
+    again = ExactGP(X, Y, hs, np.zeros(2), np.ones(2), neighbours=12, alpha=near.alpha)
+    assert again.L == []
+    np.testing.assert_allclose(again.predict(Xs, True)[1], s_nn)
+
+
 def test_sparse_with_all_points_inducing_equals_exact():
     rng = np.random.default_rng(2)
     X = rng.normal(size=(30, 3))

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 import numpy as np
 import typer
@@ -48,6 +48,7 @@ def train_cmd(
     feature: str = typer.Option("hog", "--feature", help="hog or lbp."),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
+    components: int = typer.Option(128, "--components", help="Principal components of the feature (0 = raw feature)."),
     seed: int = typer.Option(0, "--seed"),
 ):
     """Learn one Gaussian process per angle from labelled crops."""
@@ -58,9 +59,12 @@ def train_cmd(
         raise InputError(f"unknown feature {feature!r}; choose hog or lbp")
     if method not in ("auto", "exact", "sparse"):
         raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
+    if components < 0:
+        raise InputError(f"--components must be 0 or positive, got {components}")
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     t = time.perf_counter()
-    reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, seed=seed, progress=True)
+    reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
+                        seed=seed, progress=True)
     reg.fit(imgs, Y, names)
     reg.save(model)
     hyp = ", ".join(f"{n}: l={h.length:.3g} sn={np.sqrt(h.sn2) * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
@@ -99,10 +103,13 @@ def eval_cmd(
     labels: Path = typer.Argument(..., help="Labels CSV."),
     feature: List[str] = typer.Option(["hog", "lbp"], "--feature", help="Features to compare (repeatable)."),
     folds: int = typer.Option(5, "--folds", help="Cross-validation folds."),
-    split: str = typer.Option("contiguous", "--split",
-                              help="contiguous: each fold an unseen block of frames; random: frames dealt at random (the usual k-fold)."),
-    dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen (dark) sequence."),
-    dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen sequence."),
+    split: str = typer.Option("random", "--split",
+                              help="random: frames dealt to folds at random (the usual k-fold, the thesis' protocol); "
+                                   "contiguous: each fold an unseen block of frames."),
+    test_images: Optional[Path] = typer.Option(None, "--test-images", help="Crops of an unseen normal-light sequence."),
+    test_labels: Optional[Path] = typer.Option(None, "--test-labels", help="Labels of the unseen normal-light sequence."),
+    dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen dark sequence."),
+    dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen dark sequence."),
     orientation: Optional[str] = typer.Option(None, "--orientation",
                                               help="Comma-separated Euler-angle columns of the stem (default yaw,pitch,roll when present)."),
     euler: str = typer.Option("ZYX", "--euler", help="Euler convention of those columns (SciPy; upper case = intrinsic)."),
@@ -110,13 +117,10 @@ def eval_cmd(
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
-    from artmotion.pose.data import load_labelled
+    from artmotion.pose.data import load_labelled, write_predictions
     from artmotion.pose.evaluate import Columns, cross_validate, summary
-    from artmotion.pose.features import extract
     from artmotion.pose.model import PoseRegressor
 
-    if (dark_images is None) != (dark_labels is None):
-        raise InputError("--dark-images and --dark-labels go together")
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     for f in feature:
@@ -124,34 +128,38 @@ def eval_cmd(
             raise InputError(f"unknown feature {f!r}; choose hog or lbp")
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
-    dark = None
-    if dark_images is not None:
-        dnames, dpaths, dimgs, dY = load_labelled(dark_images, dark_labels, progress=True)
-        if dnames != names:
-            raise InputError(f"angle columns {dnames} differ from the training labels {names}", path=dark_labels)
-        dark = (dpaths, dimgs, dY)
+    unseen = {}
+    for key, (u_images, u_labels, opt) in {"test": (test_images, test_labels, "--test"),
+                                           "dark": (dark_images, dark_labels, "--dark")}.items():
+        if (u_images is None) != (u_labels is None):
+            raise InputError(f"{opt}-images and {opt}-labels go together")
+        if u_images is not None:
+            unames, upaths, uimgs, uY = load_labelled(u_images, u_labels, progress=True)
+            if unames != names:
+                raise InputError(f"angle columns {unames} differ from the training labels {names}", path=u_labels)
+            unseen[key] = (upaths, uimgs, uY)
     results = {}
     for f in feature:
         t = time.perf_counter()
-        X = extract(imgs, f)
+        X = PoseRegressor(feature=f).features(imgs)
         mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f, method=method)
         res = summary(Y, mean, std, fmean, cols, names)
         res["seconds"] = time.perf_counter() - t
-        if dark is not None:
-            reg = PoseRegressor(feature=f, method=method).fit(X, Y, names)
-            dm, ds = reg.predict(dark[1], return_std=True)
-            dfm, _ = reg.make_filter().filter(dm, ds)
-            dres = summary(dark[2], dm, ds, dfm, cols, names)
-            res.update({f"dark {k}": v for k, v in dres.items()})
-        results[f] = res
         if out is not None:
-            from artmotion.pose.data import write_predictions
-
             write_predictions(out / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
-            write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
-            if dark is not None:
-                write_predictions(out / f"dark_{f}.csv", [p.name for p in dark[0]], names, dm, ds)
-    table = format_tables(results, names, cols, dark is not None, split)
+            if split == "contiguous":
+                write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
+        if unseen:
+            reg = PoseRegressor(feature=f, method=method).fit(X, Y, names)
+        for key, (upaths, uimgs, uY) in unseen.items():
+            um, us = reg.predict(uimgs, return_std=True)
+            ufm, ufs = reg.make_filter().filter(um, us)
+            res.update({f"{key} {k}": v for k, v in summary(uY, um, us, ufm, cols, names).items()})
+            if out is not None:
+                write_predictions(out / f"{key}_{f}.csv", [p.name for p in upaths], names, um, us)
+                write_predictions(out / f"{key}_{f}_filtered.csv", [p.name for p in upaths], names, ufm, ufs)
+        results[f] = res
+    table = format_tables(results, names, cols, list(unseen), split)
     typer.echo(table)
     if out is not None:
         from artmotion.io import atomic_write
@@ -162,25 +170,37 @@ def eval_cmd(
             json.dump(results, fh, indent=1)
 
 
-def format_tables(results: dict, names, cols, dark: bool, split: str = "contiguous") -> str:
+_UNSEEN_TITLES = {"test": "Unseen normal-light sequence", "dark": "Unseen dark sequence"}
+
+
+def format_tables(results: dict, names, cols, unseen: Sequence[str] = (), split: str = "random") -> str:
+    """Markdown tables of :func:`eval_cmd`'s results (cross-validation, 3σ coverage, unseen sequences)."""
     keys = (["orientation"] if cols.orientation else []) + [n for i, n in enumerate(names) if i in cols.others]
+    filtered = split == "contiguous"  # random folds are not sequences: nothing to filter
     lines = [f"Cross-validation, {split} folds (mean absolute error, degrees; 'orientation' = angle between stem directions)", ""]
-    head = "| feature | " + " | ".join(keys) + " | " + " | ".join(f"{k} filtered" for k in keys) + " | all angles in 3σ |"
-    lines += [head, "|" + "---|" * (2 * len(keys) + 2)]
-    for f, r in results.items():
-        lines.append(f"| {f.upper()} | " + " | ".join(f"{r[k]:.2f}" for k in keys) + " | "
-                     + " | ".join(f"{r[k + ' filtered']:.2f}" for k in keys) + f" | {100 * r['all in 3sd']:.1f}% |")
+
+    def table(prefix: str, with_filter: bool) -> list[str]:
+        cells = keys + ([f"{k} filtered" for k in keys] if with_filter else [])
+        rows = ["| feature | " + " | ".join(cells) + " | all angles in 3σ |", "|" + "---|" * (len(cells) + 2)]
+        for f, r in results.items():
+            rows.append(f"| {f.upper()} | " + " | ".join(f"{r[prefix + k]:.2f}" for k in cells)
+                        + f" | {100 * r[prefix + 'all in 3sd']:.1f}% |")
+        return rows
+
+    lines += table("", filtered)
     lines += ["", "Fraction of frames whose true angle lies inside the predicted ±3σ band", "",
               "| feature | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
     for f, r in results.items():
         lines.append(f"| {f.upper()} | " + " | ".join(f"{100 * r[n + ' in 3sd']:.1f}%" for n in names) + " |")
-    if dark:
-        lines += ["", "Unseen (dark) sequence, trained on the whole normal-light set", "", head,
-                  "|" + "---|" * (2 * len(keys) + 2)]
+    for key in unseen:
+        lines += ["", f"{_UNSEEN_TITLES[key]}, trained on the whole set (raw GP mean, then Kalman-filtered)", ""]
+        lines += table(f"{key} ", True)
+    if "test" in unseen and "dark" in unseen:
+        lines += ["", "Dark / normal light, error ratio on the unseen sequences", "",
+                  "| feature | " + " | ".join(keys) + " |", "|" + "---|" * (len(keys) + 1)]
         for f, r in results.items():
-            lines.append(f"| {f.upper()} | " + " | ".join(f"{r['dark ' + k]:.2f}" for k in keys) + " | "
-                         + " | ".join(f"{r['dark ' + k + ' filtered']:.2f}" for k in keys)
-                         + f" | {100 * r['dark all in 3sd']:.1f}% |")
+            lines.append(f"| {f.upper()} | " + " | ".join(f"{r['dark ' + k] / max(r['test ' + k], 1e-12):.2f}×"
+                                                        for k in keys) + " |")
     return "\n".join(lines)
 
 

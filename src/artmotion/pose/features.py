@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Sequence
 
 import cv2
@@ -27,8 +28,12 @@ FEATURES = ("hog", "lbp")
 _EPS = 1e-4
 
 
-def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H)) -> np.ndarray:
-    """Resize a crop (any size, grey or BGR) to ``size`` = (width, height), 3-channel float32 in [0, 1]."""
+def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H), blur: float = 0.0) -> np.ndarray:
+    """Resize a crop (any size, grey or BGR) to ``size`` = (width, height), 3-channel float32 in [0, 1].
+
+    ``blur`` > 0: Gaussian smoothing with that sigma (pixels of the resized crop) afterwards, which
+    takes sensor noise out of the gradients before a feature sees them.
+    """
     img = np.asarray(image)
     if img.ndim == 2:
         img = img[:, :, None].repeat(3, axis=2)
@@ -37,9 +42,15 @@ def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H)) -> 
     if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 2 or img.shape[1] < 2:
         raise InputError(f"expected an image of at least 2x2 pixels, got shape {img.shape}")
     scale = 1.0 / 255.0 if img.dtype == np.uint8 else (1.0 / 65535.0 if img.dtype == np.uint16 else 1.0)
-    img = img.astype(np.float32) * np.float32(scale)  # resample in float: no re-quantisation
+    if img.dtype in (np.uint8, np.uint16, np.float32, np.float64):
+        # halve big crops with the Gaussian pyramid first (anti-aliased, and much cheaper than one
+        # area resize from the full size); stop while the crop is still at least the target size
+        while img.shape[0] >= 2 * size[1] and img.shape[1] >= 2 * size[0]:
+            img = cv2.pyrDown(np.ascontiguousarray(img))
+    img = img.astype(np.float32) * np.float32(scale)  # final resample in float
     interp = cv2.INTER_AREA if img.shape[0] > size[1] else cv2.INTER_LINEAR
-    return cv2.resize(img, size, interpolation=interp)
+    img = cv2.resize(img, size, interpolation=interp)
+    return cv2.GaussianBlur(img, (0, 0), blur) if blur > 0 else img
 
 
 def crop_box(frame: np.ndarray, box) -> np.ndarray:
@@ -54,6 +65,15 @@ def crop_box(frame: np.ndarray, box) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------- HOG
+@lru_cache(maxsize=8)
+def _cell_base(B: int, cy: int, cx: int, cell: int) -> np.ndarray:
+    """Index of each pixel's cell histogram in the flat ``(B, cy, cx, 18)`` array (times 18)."""
+    cell_idx = (np.arange(cy * cell) // cell)[:, None] * cx + (np.arange(cx * cell) // cell)[None, :]
+    base = (np.arange(B)[:, None, None] * (cy * cx) + cell_idx[None]) * 18
+    base.setflags(write=False)
+    return base
+
+
 def hog_batch(batch: np.ndarray, cell: int = 8) -> np.ndarray:
     """UoCTTI HOG of a batch ``(B, H, W, 3)`` float32 → ``(B, (H//cell)*(W//cell)*31)``."""
     B, H, W, _ = batch.shape
@@ -78,22 +98,24 @@ def hog_batch(batch: np.ndarray, cell: int = 8) -> np.ndarray:
     gy = np.where(use2, gy[..., 2], np.where(use1, gy[..., 1], gy[..., 0]))
     mag = np.sqrt(np.where(use2, m2, best01))
     # 18 contrast-sensitive orientation bins with linear interpolation between the two nearest
-    ang = np.arctan2(gy, gx)  # (-pi, pi]
-    pos = (ang % (2 * np.pi)) * (18 / (2 * np.pi))
-    b0 = np.floor(pos).astype(np.int64) % 18
-    w1 = (pos - np.floor(pos)).astype(np.float32)
-    b1 = (b0 + 1) % 18
+    pos = np.arctan2(gy, gx) * np.float32(18 / (2 * np.pi))  # (-9, 9]
+    pos += np.where(pos < 0, np.float32(18), np.float32(0))  # [0, 18]
+    fl = np.floor(pos)
+    w1 = pos - fl
+    b0 = fl.astype(np.int64)
+    b0[b0 >= 18] -= 18
+    b1 = b0 + 1
+    b1[b1 == 18] = 0
     hist = np.zeros((B, cy, cx, 18), dtype=np.float32)
-    # cell index of each pixel
-    cell_idx = (np.arange(cy * cell) // cell)[:, None] * cx + (np.arange(cx * cell) // cell)[None, :]
-    base = (np.arange(B)[:, None, None] * (cy * cx) + cell_idx[None]) * 18
+    base = _cell_base(B, cy, cx, cell)
     flat = hist.reshape(-1)
     flat += np.bincount((base + b0).ravel(), weights=(mag * (1 - w1)).ravel(), minlength=flat.size)[: flat.size]
     flat += np.bincount((base + b1).ravel(), weights=(mag * w1).ravel(), minlength=flat.size)[: flat.size]
     hist = flat.reshape(B, cy, cx, 18)
     insens = hist[..., :9] + hist[..., 9:]
     energy = (insens * insens).sum(-1)  # (B, cy, cx)
-    pad = np.pad(energy, ((0, 0), (1, 1), (1, 1)), mode="edge")
+    pad = np.concatenate([energy[:, :1], energy, energy[:, -1:]], axis=1)  # edge padding
+    pad = np.concatenate([pad[:, :, :1], pad, pad[:, :, -1:]], axis=2)
     # block energies: block (i, j) covers cells (i..i+1, j..j+1) of the padded grid
     blk = pad[:, :-1, :-1] + pad[:, 1:, :-1] + pad[:, :-1, 1:] + pad[:, 1:, 1:]  # (B, cy+1, cx+1)
     norms = [
@@ -146,8 +168,10 @@ def extract(
     size: tuple[int, int] = (CROP_W, CROP_H),
     cell: int | None = None,
     chunk: int = 256,
+    blur: float = 0.0,
 ) -> np.ndarray:
-    """Feature matrix ``(len(images), d)`` float32 of crops of any size (resized to ``size``)."""
+    """Feature matrix ``(len(images), d)`` float32 of crops of any size (resized to ``size``,
+    smoothed with a Gaussian of sigma ``blur`` pixels when ``blur`` > 0)."""
     if kind not in FEATURES:
         raise InputError(f"unknown feature {kind!r}; choose one of {', '.join(FEATURES)}")
     cell = default_cell(kind) if cell is None else int(cell)
@@ -158,7 +182,7 @@ def extract(
     fn = hog_batch if kind == "hog" else lbp_batch
 
     def work(s):
-        batch = np.stack([resize_crop(im, size) for im in images[s : s + chunk]])
+        batch = np.stack([resize_crop(im, size, blur) for im in images[s : s + chunk]])
         out[s : s + len(batch)] = fn(batch, cell)
 
     starts = list(range(0, n, chunk))

@@ -21,7 +21,7 @@ from artmotion.pose import features as F
 from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
 MAGIC = "artmotion-pose-gp"
-VERSION = 1
+VERSION = 2
 
 
 def accel_variance(Y: np.ndarray, dt: float = 1.0) -> np.ndarray:
@@ -50,14 +50,13 @@ class PoseFilter:
         self.reset()
 
     def reset(self) -> None:
-        self._kf: list[KalmanFilter] | None = None
+        self._kf: KalmanFilter | None = None
 
     def _start(self, z: np.ndarray, var: np.ndarray) -> None:
-        self._kf = []
-        for k, q in enumerate(self.accel_var):
-            Fm, Q, H = constant_velocity(self.dt, q, dims=1)
-            P = np.diag([var[k], max(var[k], q) * 10.0])
-            self._kf.append(KalmanFilter([z[k], 0.0], P, Fm, Q, H, [[var[k]]]))
+        # one filter over all angles, state [y_1, y_1', y_2, y_2', ...]: the blocks stay independent
+        Fm, Q, H = constant_velocity(self.dt, self.accel_var, dims=len(z))
+        P = np.diag(np.ravel(np.column_stack([var, np.maximum(var, self.accel_var) * 10.0])))
+        self._kf = KalmanFilter(np.ravel(np.column_stack([z, np.zeros_like(z)])), P, Fm, Q, H, np.diag(var))
 
     def step(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         """Fuse one frame's GP prediction (mean and std per angle); return the filtered state."""
@@ -68,12 +67,10 @@ class PoseFilter:
         if self._kf is None:
             self._start(z, var)
             return z.copy(), np.sqrt(var)
-        out, sd = np.empty_like(z), np.empty_like(z)
-        for k, kf in enumerate(self._kf):
-            kf.predict()
-            kf.update(z[k], R=[[var[k]]])
-            out[k], sd[k] = kf.x[0], np.sqrt(kf.P[0, 0])
-        return out, sd
+        kf = self._kf
+        kf.predict()
+        kf.update(z, R=np.diag(var))
+        return kf.x[0::2].copy(), np.sqrt(np.diag(kf.P)[0::2])
 
     def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         mean = np.atleast_2d(np.asarray(mean, dtype=float))
@@ -89,23 +86,31 @@ class PoseRegressor:
     """Joint angles from a tool crop: HOG/LBP features + one GP per angle (scikit-learn style).
 
     Parameters: ``feature`` (``"hog"`` or ``"lbp"``), ``cell`` (feature cell size; default 8 for
-    HOG, 16 for LBP), ``size`` (crop resize, width×height), ``method`` (``"auto"``, ``"exact"``,
-    ``"sparse"``), ``max_exact`` (``auto`` switches to the sparse GP above this many training
-    examples), ``n_inducing``, ``n_opt`` (subset used for hyper-parameter optimisation),
+    HOG, 16 for LBP), ``size`` (crop resize, width×height), ``blur`` (Gaussian sigma in pixels of
+    the resized crop, against sensor noise; 0 = none), ``n_components`` (the features are
+    projected on their first principal components before the GP; ``None`` keeps the raw
+    feature), ``method`` (``"auto"``, ``"exact"``, ``"sparse"``), ``max_exact`` (``auto``
+    switches to the sparse GP above this many training examples), ``neighbours`` (the exact GP's
+    variance from this many nearest training crops; ``None``: the exact ``O(n^2)`` variance),
+    ``n_inducing`` (sparse GP), ``n_opt`` (subset used for hyper-parameter optimisation),
     ``restarts``, ``seed``, ``progress`` (tqdm bars), ``inducing`` (``"kmeans"`` or ``"random"``
     choice of the sparse GP's inducing inputs).
     """
 
     def __init__(self, feature: str = "hog", cell: int | None = None, size: tuple[int, int] = (F.CROP_W, F.CROP_H),
-                 method: str = "auto", max_exact: int = 2000, n_inducing: int = 1000, n_opt: int = 500,
-                 restarts: int = 1, seed: int = 0, progress: bool = False, inducing: str = "kmeans"):
+                 blur: float = 0.7, n_components: int | None = 128, method: str = "auto", max_exact: int = 6000,
+                 neighbours: int | None = 16, n_inducing: int = 1000, n_opt: int = 500, restarts: int = 1,
+                 seed: int = 0, progress: bool = False, inducing: str = "kmeans"):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
         self.feature = feature
         self.cell = F.default_cell(feature) if cell is None else int(cell)
         self.size = (int(size[0]), int(size[1]))
+        self.blur = float(blur)
+        self.n_components = n_components
         self.method = method
         self.max_exact = max_exact
+        self.neighbours = neighbours
         self.n_inducing = n_inducing
         self.n_opt = n_opt
         self.restarts = restarts
@@ -115,10 +120,17 @@ class PoseRegressor:
         self.names_: list[str] | None = None
         self.gp_ = None
         self.accel_var_: np.ndarray | None = None
+        self.pca_mean_: np.ndarray | None = None
+        self.pca_components_: np.ndarray | None = None
 
     # -- features
     def features(self, images: Sequence[np.ndarray]) -> np.ndarray:
-        return F.extract(images, self.feature, self.size, self.cell)
+        return F.extract(images, self.feature, self.size, self.cell, blur=self.blur)
+
+    def _project(self, X: np.ndarray) -> np.ndarray:
+        if self.pca_components_ is None:
+            return X
+        return (np.asarray(X, dtype=np.float32) - self.pca_mean_) @ self.pca_components_.T
 
     # -- training / prediction
     def fit(self, images, Y, names: Sequence[str] | None = None):
@@ -133,8 +145,16 @@ class PoseRegressor:
         if not np.all(np.isfinite(Y)):
             raise InputError("labels contain NaN or infinite values")
         self.names_ = list(names) if names is not None else [f"angle{k}" for k in range(Y.shape[1])]
-        self.gp_ = fit_gp(X, Y, self.method, self.max_exact, self.n_inducing, self.n_opt, self.restarts,
-                          self.seed, progress=self.progress, inducing=self.inducing)
+        self.pca_mean_ = self.pca_components_ = None
+        if self.n_components is not None and self.n_components < min(X.shape):
+            from sklearn.decomposition import PCA
+
+            pca = PCA(self.n_components, svd_solver="randomized", random_state=self.seed).fit(X)
+            self.pca_mean_ = pca.mean_.astype(np.float32)
+            self.pca_components_ = pca.components_.astype(np.float32)
+        self.gp_ = fit_gp(self._project(X), Y, self.method, self.max_exact, self.n_inducing, self.n_opt,
+                          self.restarts, self.seed, progress=self.progress, inducing=self.inducing,
+                          neighbours=self.neighbours)
         self.accel_var_ = accel_variance(Y)
         return self
 
@@ -143,17 +163,26 @@ class PoseRegressor:
             return images
         return self.features(images)
 
-    def predict(self, images, return_std: bool = False, batch: int = 1024):
+    def predict(self, images, return_std: bool = False, batch: int = 256):
+        """Mean (and std) of every angle for crops or a feature matrix; chunks of ``batch`` frames
+        run on a small thread pool (NumPy and OpenCV release the GIL)."""
         if self.gp_ is None:
             raise RuntimeError("PoseRegressor is not fitted")
-        X = self._as_features(images)
-        means, stds = [], []
-        for s in range(0, len(X), batch):
-            r = self.gp_.predict(X[s : s + batch], return_std=True)
-            means.append(r[0])
-            stds.append(r[1])
-        mean = np.concatenate(means) if means else np.empty((0, len(self.names_)))
-        std = np.concatenate(stds) if stds else np.empty((0, len(self.names_)))
+
+        def work(s):
+            return self.gp_.predict(self._project(self._as_features(images[s : s + batch])), return_std=True)
+
+        starts = list(range(0, len(images), batch))
+        if len(starts) > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+                parts = list(pool.map(work, starts))
+        else:
+            parts = [work(s) for s in starts]
+        k = len(self.names_)
+        mean = np.concatenate([p[0] for p in parts]) if parts else np.empty((0, k))
+        std = np.concatenate([p[1] for p in parts]) if parts else np.empty((0, k))
         return (mean, std) if return_std else mean
 
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
@@ -166,11 +195,15 @@ class PoseRegressor:
         Ys = gp.Ys
         data = dict(
             magic=np.array(MAGIC), version=np.array(VERSION), feature=np.array(self.feature),
-            cell=np.array(self.cell), size=np.array(self.size), names=np.array(self.names_),
+            cell=np.array(self.cell), size=np.array(self.size), blur=np.array(self.blur), names=np.array(self.names_),
             method=np.array(gp.kind), X=X.astype(np.float32), Ys=Ys, y_mean=gp.y_mean, y_std=gp.y_std,
             hypers=np.array([h.as_array() for h in gp.hypers]), accel_var=self.accel_var_,
             var_scale=gp.var_scale,
             inducing=gp.inducing if isinstance(gp, SparseGP) else np.zeros(0, np.int64),
+            alpha=gp.alpha if isinstance(gp, ExactGP) else np.zeros(0),
+            neighbours=np.array(-1 if getattr(gp, "neighbours", None) is None else gp.neighbours),
+            pca_mean=np.zeros(0, np.float32) if self.pca_mean_ is None else self.pca_mean_,
+            pca_components=np.zeros((0, 0), np.float32) if self.pca_components_ is None else self.pca_components_,
         )
         with atomic_path(path, suffix=".npz") as tmp:
             with open(tmp, "wb") as fh:
@@ -191,12 +224,21 @@ class PoseRegressor:
         if int(d["version"]) != VERSION:
             raise InputError(f"unsupported pose model version {int(d['version'])}", path=path)
         try:
-            reg = cls(feature=str(d["feature"]), cell=int(d["cell"]), size=tuple(int(v) for v in d["size"]))
+            reg = cls(feature=str(d["feature"]), cell=int(d["cell"]), size=tuple(int(v) for v in d["size"]),
+                      blur=float(d["blur"]))
             reg.names_ = [str(s) for s in d["names"]]
             hypers = [Hyper(*map(float, h)) for h in d["hypers"]]
             X = d["X"].astype(np.float64)
+            if d["pca_components"].size:
+                reg.pca_mean_ = d["pca_mean"].astype(np.float32)
+                reg.pca_components_ = d["pca_components"].astype(np.float32)
+                reg.n_components = len(reg.pca_components_)
+            else:
+                reg.n_components = None
+            nb = int(d["neighbours"])
+            reg.neighbours = None if nb < 0 else nb
             if str(d["method"]) == "exact":
-                reg.gp_ = ExactGP(X, d["Ys"], hypers, d["y_mean"], d["y_std"])
+                reg.gp_ = ExactGP(X, d["Ys"], hypers, d["y_mean"], d["y_std"], reg.neighbours, d["alpha"])
             else:
                 reg.gp_ = SparseGP(X, d["Ys"], hypers, d["y_mean"], d["y_std"], d["inducing"])
             reg.gp_.var_scale = np.asarray(d["var_scale"], dtype=float)

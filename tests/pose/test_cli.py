@@ -1,3 +1,4 @@
+import json
 import shutil
 
 import cv2
@@ -60,7 +61,7 @@ def test_eval_tables_on_unseen_sequences(split, run_cli, tmp_path):
                              "--dark-images", tmp_path / "dark" / "crops", "--dark-labels", tmp_path / "dark" / "labels.csv",
                              "--out", tmp_path / "ev")
     assert code == 0, err
-    res = __import__("json").loads((tmp_path / "ev" / "eval.json").read_text())["hog"]
+    res = json.loads((tmp_path / "ev" / "eval.json").read_text())["hog"]
     for key in ("orientation", "opening", "test opening", "dark opening", "dark opening filtered", "all in 3sd"):
         assert np.isfinite(res[key]), key
     assert res["opening"] < 20 and res["orientation"] < 10  # far below chance on rendered crops

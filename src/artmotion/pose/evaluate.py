@@ -3,9 +3,9 @@
 * orientation error: the angle between the true and estimated stem directions (unit vectors from
   the Euler angles), i.e. the cosine distance turned back into degrees;
 * any other angle (e.g. the jaw opening): ``|estimate - truth|``.
-Folds are contiguous blocks of the sequence, so every test fold is an unseen stretch of motion
-(random folds would put near-duplicate neighbouring frames into training) and can be filtered in
-time.
+Folds are dealt at random (the usual k-fold, the thesis' protocol) or are contiguous blocks of
+the sequence, so that every test fold is an unseen stretch of motion that can be filtered in time
+(random folds put near-duplicate neighbouring frames into training).
 """
 
 from __future__ import annotations
@@ -63,13 +63,14 @@ def errors(Y: np.ndarray, P: np.ndarray, cols: Columns, names: Sequence[str]) ->
 
 
 def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: int = 5, progress: bool = False,
-                   split: str = "contiguous", seed: int = 0, **reg_kwargs):
+                   split: str = "random", seed: int = 0, **reg_kwargs):
     """Out-of-fold predictions: ``(mean, std, filtered_mean, filtered_std, fold_id)``.
 
-    ``split="contiguous"``: each fold is a block of consecutive frames (an unseen stretch of
-    motion); ``"random"``: frames are dealt to folds at random (neighbouring, nearly identical
-    frames then fall on both sides, which flatters the error — the usual k-fold protocol).
-    The Kalman filter always runs over the test frames in time order.
+    ``split="random"``: frames are dealt to folds at random (the usual k-fold protocol;
+    neighbouring, nearly identical frames then fall on both sides, which flatters the error);
+    ``"contiguous"``: each fold is a block of consecutive frames (an unseen stretch of motion).
+    The Kalman filter always runs over the test frames in time order (meaningful only for
+    contiguous folds).
     """
     n = len(X)
     if split not in ("contiguous", "random"):

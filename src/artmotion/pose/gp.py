@@ -161,8 +161,9 @@ class ExactGP(_BaseGP):
 
     def predict(self, X: np.ndarray, return_std: bool = False):
         X = np.atleast_2d(np.asarray(X))
-        D2 = sqdist(X.astype(np.float32), self._X32, None, self._X2_32)  # float32: the kernel row is
-        mu = np.empty((len(X), self.n_outputs))                          # the cost (< 0.01° effect)
+        # the kernel row is the cost: float32 (changes the mean by < 0.01° on the pose data)
+        D2 = sqdist(X.astype(np.float32), self._X32, None, self._X2_32)
+        mu = np.empty((len(X), self.n_outputs))
         var = np.empty_like(mu)
         for k, h in enumerate(self.hypers):
             Ks = np.exp(D2 * np.float32(-0.5 / (h.length * h.length))) * np.float32(h.sf2)

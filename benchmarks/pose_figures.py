@@ -4,8 +4,8 @@
 
 (``eval`` run with ``--test-images/--test-labels`` and ``--dark-images/--dark-labels`` for those
 two renders.) Writes docs/pose_regression_comparison.png (Sec. 3.3.2), docs/pose_band.png
-(Fig. 3.4, cross-validated), docs/pose_filter.png (Fig. 3.6, on the unseen normal-light
-sequence), docs/pose_dark.png (Table 3.2 / Fig. 3.8), docs/pose_samples.png and
+(Fig. 3.4, cross-validated), docs/pose_filter.png (Fig. 3.6, cross-validated) and
+docs/pose_filter_unseen.png (the same on the unseen normal-light sequence), docs/pose_dark.png (Table 3.2 / Fig. 3.8), docs/pose_samples.png and
 docs/pose_dark_samples.png (rendered frames with boxes), and prints the frame-to-frame jitter
 of the raw and filtered estimates on the unseen sequences.
 """
@@ -56,7 +56,9 @@ def main():
     names, _, Y = read_labels(data / "labels.csv")
     k = names.index("opening")
     _, _, m, s = load_pred(ev / "cv_hog.csv")
+    _, _, fm, _ = load_pred(ev / "cv_hog_filtered.csv")
     plots.band_plot(docs / "pose_band.png", Y[:, k], m[:, k], s[:, k], "opening (cross-validated)", start=3300, length=300)
+    plots.filter_plot(docs / "pose_filter.png", Y[:, k], m[:, k], fm[:, k], "opening (cross-validated)", 3300, 300)
     samples(data, docs / "pose_samples.png")
     for key, seq in (("test", test), ("dark", dark)):
         _, _, tY = read_labels(seq / "labels.csv")
@@ -66,7 +68,7 @@ def main():
         print(key, "jitter raw     ", dict(zip(names, jit(tm).round(2))))
         print(key, "jitter filtered", dict(zip(names, jit(fm).round(2))))
         if key == "test":
-            plots.filter_plot(docs / "pose_filter.png", tY[:, k], tm[:, k], fm[:, k], "opening (unseen sequence)", 0, 300)
+            plots.filter_plot(docs / "pose_filter_unseen.png", tY[:, k], tm[:, k], fm[:, k], "opening (unseen sequence)", 0, 300)
         else:
             plots.band_plot(docs / "pose_dark.png", tY[:, k], tm[:, k], ts[:, k], "opening (dark, HOG)", 0, 300)
             samples(dark, docs / "pose_dark_samples.png", (20, 150, 280))

@@ -67,6 +67,11 @@ def test_eval_tables_on_unseen_sequences(split, run_cli, tmp_path):
     assert res["opening"] < 20 and res["orientation"] < 10  # far below chance on rendered crops
     assert "Dark / normal light" in out and "random folds" in out
     assert (tmp_path / "ev" / "dark_hog_filtered.csv").exists() and (tmp_path / "ev" / "cv_hog.csv").exists()
+    # random folds: the out-of-fold predictions in time order are filtered as one sequence
+    _, _, raw = read_labels(tmp_path / "ev" / "cv_hog.csv")
+    _, _, filt = read_labels(tmp_path / "ev" / "cv_hog_filtered.csv")
+    jitter = lambda P: np.abs(np.diff(P[:, 0::2], axis=0)).mean()  # noqa: E731
+    assert np.isfinite(res["opening filtered"]) and jitter(filt) < 0.8 * jitter(raw)
     code, _, err = run_cli("pose", "eval", split / "train", split / "train.csv", "--dark-images", tmp_path / "dark" / "crops")
     assert code == 2 and "go together" in err
 

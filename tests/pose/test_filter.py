@@ -61,3 +61,8 @@ def test_accel_variance_of_white_noise_acceleration():
         x[t] = x[t - 1] + v + a[t - 1] / 2
         v += a[t - 1]
     assert abs(accel_variance(x[:, None])[0] - q) < 0.05
+    # rows taken out of the sequence (a cross-validation fold) leave gaps: only runs of three
+    # consecutive frames count, so the estimate does not change
+    keep = np.sort(np.random.default_rng(3).choice(len(x), size=16000, replace=False))
+    assert abs(accel_variance(x[keep, None], frames=keep)[0] - q) < 0.06
+    assert accel_variance(x[keep, None])[0] > 3 * q  # ignoring the gaps inflates it

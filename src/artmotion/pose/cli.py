@@ -147,8 +147,7 @@ def eval_cmd(
         res["seconds"] = time.perf_counter() - t
         if out is not None:
             write_predictions(out / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
-            if split == "contiguous":
-                write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
+            write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
         if unseen:
             reg = PoseRegressor(feature=f, method=method).fit(X, Y, names)
         for key, (upaths, uimgs, uY) in unseen.items():
@@ -176,25 +175,24 @@ _UNSEEN_TITLES = {"test": "Unseen normal-light sequence", "dark": "Unseen dark s
 def format_tables(results: dict, names, cols, unseen: Sequence[str] = (), split: str = "random") -> str:
     """Markdown tables of :func:`eval_cmd`'s results (cross-validation, 3σ coverage, unseen sequences)."""
     keys = (["orientation"] if cols.orientation else []) + [n for i, n in enumerate(names) if i in cols.others]
-    filtered = split == "contiguous"  # random folds are not sequences: nothing to filter
     lines = [f"Cross-validation, {split} folds (mean absolute error, degrees; 'orientation' = angle between stem directions)", ""]
 
-    def table(prefix: str, with_filter: bool) -> list[str]:
-        cells = keys + ([f"{k} filtered" for k in keys] if with_filter else [])
+    def table(prefix: str) -> list[str]:
+        cells = keys + [f"{k} filtered" for k in keys]
         rows = ["| feature | " + " | ".join(cells) + " | all angles in 3σ |", "|" + "---|" * (len(cells) + 2)]
         for f, r in results.items():
             rows.append(f"| {f.upper()} | " + " | ".join(f"{r[prefix + k]:.2f}" for k in cells)
                         + f" | {100 * r[prefix + 'all in 3sd']:.1f}% |")
         return rows
 
-    lines += table("", filtered)
+    lines += table("")
     lines += ["", "Fraction of frames whose true angle lies inside the predicted ±3σ band", "",
               "| feature | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
     for f, r in results.items():
         lines.append(f"| {f.upper()} | " + " | ".join(f"{100 * r[n + ' in 3sd']:.1f}%" for n in names) + " |")
     for key in unseen:
         lines += ["", f"{_UNSEEN_TITLES[key]}, trained on the whole set (raw GP mean, then Kalman-filtered)", ""]
-        lines += table(f"{key} ", True)
+        lines += table(f"{key} ")
     if "test" in unseen and "dark" in unseen:
         lines += ["", "Dark / normal light, error ratio on the unseen sequences", "",
                   "| feature | " + " | ".join(keys) + " |", "|" + "---|" * (len(keys) + 1)]

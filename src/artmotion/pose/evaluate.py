@@ -16,7 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.pose.model import PoseRegressor
+from artmotion.pose.model import PoseFilter, PoseRegressor, accel_variance
 from artmotion.pose.render import stem_direction
 
 
@@ -69,8 +69,10 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     ``split="random"``: frames are dealt to folds at random (the usual k-fold protocol;
     neighbouring, nearly identical frames then fall on both sides, which flatters the error);
     ``"contiguous"``: each fold is a block of consecutive frames (an unseen stretch of motion).
-    The Kalman filter always runs over the test frames in time order (meaningful only for
-    contiguous folds).
+    Filtering: with contiguous folds the Kalman filter runs over each test block; with random
+    folds the out-of-fold predictions of all frames, in time order, are one sequence (every
+    frame predicted by a model that never saw it) and the filter runs over that, with the mean
+    of the folds' acceleration priors (each from training labels only).
     """
     n = len(X)
     if split not in ("contiguous", "random"):
@@ -83,6 +85,7 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     fmean = np.empty_like(Y)
     fstd = np.empty_like(Y)
     fold_id = np.empty(n, int)
+    accel = []
     perm = np.random.default_rng(seed).permutation(n)
     it = range(folds)
     if progress:
@@ -98,11 +101,14 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
         reg = PoseRegressor(**reg_kwargs)
         # keep the training blocks in time order so the motion prior sees real sequences
         reg.fit(X[train], Y[train], names)
-        # the acceleration prior from the blocks (minus the seam between blocks)
         m, s = reg.predict(X[test], return_std=True)
         mean[test], std[test] = m, s
-        fmean[test], fstd[test] = reg.make_filter().filter(m, s)
+        accel.append(accel_variance(Y[train], frames=train))  # training labels, no gaps or seams
+        if split == "contiguous":
+            fmean[test], fstd[test] = PoseFilter(accel[-1]).filter(m, s)
         fold_id[test] = f
+    if split == "random":
+        fmean[:], fstd[:] = PoseFilter(np.mean(accel, axis=0)).filter(mean, std)
     return mean, std, fmean, fstd, fold_id
 
 

@@ -24,15 +24,22 @@ MAGIC = "artmotion-pose-gp"
 VERSION = 2
 
 
-def accel_variance(Y: np.ndarray, dt: float = 1.0) -> np.ndarray:
+def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = None) -> np.ndarray:
     """White-noise acceleration variance per column of a time-ordered ``Y`` (``2 var(d2 y) / dt^4``).
 
     For the discretised model of Eq. 3.6, ``y[t+1] - 2 y[t] + y[t-1] = dt^2 (a[t] + a[t-1]) / 2``.
+    ``frames``: the frame number of each row; only second differences over three consecutive
+    frames count (rows taken out of a sequence, e.g. a cross-validation fold, leave gaps).
     """
     Y = np.asarray(Y, dtype=float).reshape(len(Y), -1)
     if len(Y) < 4:
         return np.ones(Y.shape[1])
     d2 = np.diff(Y, n=2, axis=0)
+    if frames is not None:
+        step = np.diff(np.asarray(frames))
+        d2 = d2[(step[:-1] == 1) & (step[1:] == 1)]
+        if len(d2) < 2:
+            return np.ones(Y.shape[1])
     return np.maximum(2.0 * d2.var(axis=0) / dt**4, 1e-6)
 
 

@@ -95,6 +95,7 @@ def _run_peer(name: str, seq_dir: Path) -> dict:
     import supervision as sv
     import trackers
 
+    from artmotion.geometry import xywh_to_xyxy
     from artmotion.io import read_mot
     from artmotion.tracking import open_sequence
 
@@ -108,7 +109,7 @@ def _run_peer(name: str, seq_dir: Path) -> dict:
 
     def step(f: int, image) -> None:
         d = by_frame.get(f, empty)
-        xyxy = np.column_stack([d[:, 2], d[:, 3], d[:, 2] + d[:, 4], d[:, 3] + d[:, 5]]).astype(np.float32)
+        xyxy = xywh_to_xyxy(d[:, 2:6]).astype(np.float32)
         dets = sv.Detections(xyxy=xyxy.reshape(-1, 4), confidence=d[:, 6].astype(np.float32),
                              class_id=np.zeros(len(d), dtype=int))
         tracked = tracker.update(dets, frame=image) if needs_frames else tracker.update(dets)

@@ -80,8 +80,7 @@ def run_item(item: str, out_dir: str, single_thread: bool = True) -> ItemOutcome
     try:
         res = run_pipeline(item, out_dir, progress=False)
         return ItemOutcome(item, "done", out_dir, time.perf_counter() - t0,
-                           tracks=len(set(res.tracks[:, 1].astype(int).tolist())) if len(res.tracks) else 0,
-                           sentences=len(res.sentences))
+                           tracks=res.num_tracks, sentences=len(res.sentences))
     except ArtmotionError as exc:
         msg = str(exc)
     except OSError as exc:

@@ -20,8 +20,11 @@ def _db_option():
     )
 
 
-def _db_path(db: Optional[Path]) -> Path:
-    return Path(db) if db is not None else Path(os.environ.get("ARTMOTION_INDEX", DEFAULT_DB))
+def _db_path(db: Optional[Path], must_exist: bool = False) -> Path:
+    path = Path(db) if db is not None else Path(os.environ.get("ARTMOTION_INDEX", DEFAULT_DB))
+    if must_exist and not path.is_file():
+        raise InputError("no such index (add runs with `artmotion index add`)", path=path)
+    return path
 
 
 def _run_dirs(path: Path) -> list[Path]:
@@ -53,8 +56,7 @@ def run_cmd(
 
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video,
                        pose_model=pose_model)
-    n_tracks = len(set(res.tracks[:, 1].astype(int).tolist())) if len(res.tracks) else 0
-    typer.echo(f"{res.name}: {n_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
+    typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s")
     for s in res.sentences[:10]:
         typer.echo(f"  {s['sentence']}")
@@ -95,10 +97,7 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
     """List the indexed videos with their counts of tracks, events and sentences."""
     from artmotion.app.index import EventIndex
 
-    db_path = _db_path(db)
-    if not db_path.is_file():
-        raise InputError("no such index (add runs with `artmotion index add`)", path=db_path)
-    with EventIndex(db_path) as idx:
+    with EventIndex(_db_path(db, must_exist=True)) as idx:
         videos = idx.videos()
     if as_json:
         typer.echo(json.dumps(videos, indent=1))
@@ -117,10 +116,7 @@ def search_cmd(
     """Find the moments that match a query, best first."""
     from artmotion.app.index import EventIndex
 
-    db_path = _db_path(db)
-    if not db_path.is_file():
-        raise InputError("no such index (add runs with `artmotion index add`)", path=db_path)
-    with EventIndex(db_path) as idx:
+    with EventIndex(_db_path(db, must_exist=True)) as idx:
         hits = idx.search(query, video=video, limit=limit)
     if as_json:
         typer.echo(json.dumps([h.as_dict() for h in hits], indent=1))

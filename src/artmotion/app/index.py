@@ -119,12 +119,9 @@ class Hit:
     subject: str | None = None
     run_dir: str | None = None
     match: str = "structured"
-    extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("extra")
-        return d
+        return asdict(self)
 
 
 class EventIndex:
@@ -229,6 +226,8 @@ class EventIndex:
         """Every asked-for verb and track id must hold; direction and subject add to the score."""
         hits = []
         where, params = (" AND s.action = ?", (q.verb,)) if q.verb is not None else ("", ())
+        best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
+            + 1.0 * (q.subject is not None)
         for name, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
             track_ids = json.loads(tracks)
             if q.track is not None and q.track not in track_ids:
@@ -240,8 +239,6 @@ class EventIndex:
             if q.subject is not None and q.verb is None and q.direction is None and q.track is None and not subject_ok:
                 continue
             score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok
-            best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
-                + 1.0 * (q.subject is not None)
             hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir))
         return hits
 

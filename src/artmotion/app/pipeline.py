@@ -43,6 +43,10 @@ class RunResult:
     def report(self) -> Path:
         return self.out_dir / "report.html"
 
+    @property
+    def num_tracks(self) -> int:
+        return int(len(np.unique(self.tracks[:, 1]))) if len(self.tracks) else 0
+
 
 def track_summary(tracks: np.ndarray) -> list[dict]:
     """Per track id: first and last frame and number of boxes."""
@@ -136,7 +140,7 @@ def run_pipeline(
         kwargs["experts"] = experts
     if video:
         kwargs["video"] = out / "annotated.mp4"
-    result = track(source, **kwargs)
+    result = track(seq, **kwargs)  # the opened sequence: not probed a second time
     tracks = np.asarray(result.tracks, dtype=float).reshape(-1, 10)
     events = list(result.events)
     poses = track_poses(seq, tracks, pose_model) if pose_model is not None else None
@@ -160,7 +164,7 @@ def run_pipeline(
         "events": events,
         "sentences": sentences,
         "metrics": metrics,
-        "tracking_fps": float(getattr(result, "fps", 0.0) or 0.0),
+        "tracking_fps": float(result.fps),
     }
     write_report(out / "report.html", seq, tracks, manifest)
     manifest["seconds"] = round(time.perf_counter() - t0, 3)

@@ -152,12 +152,9 @@ class _ModelFilter:
             n = self.order * self.dof
             self.x = np.zeros(n)
             self.x[:: self.order] = q
-            var = np.ones(n)
             span = max(float(np.ptp(np.asarray(X), axis=0).max()), sigma, 1e-9)
             s = span if self.model.name != "revolute" else span / max(self.model.radius, 1e-9)
-            var[:] = (10.0 * s) ** 2
-            var[:: self.order] = (10.0 * s) ** 2
-            self.P = np.diag(var)
+            self.P = np.eye(n) * (10.0 * s) ** 2
         zs = np.asarray(X, dtype=float).tolist()
         ds = np.asarray(dts, dtype=float).tolist()
         r2 = sigma * sigma
@@ -518,6 +515,20 @@ class OnlineEstimator:
         pri_ok = travel >= math.sqrt(8.0 * self.sigma * rmax)
         return rev_ok, pri_ok
 
+    def _window(self) -> int:
+        """Samples a filter (re)start runs over: the recent ``window``, at least ``min_samples``."""
+        return max(self.min_samples, min(self.window, self._n))
+
+    @staticmethod
+    def _refit(f: _ModelFilter, X: np.ndarray) -> np.ndarray:
+        """Fit ``f``'s configuration to ``X``; set ``f.swept`` and ``f.rss`` (squared residuals, for
+        :meth:`_separable`) from the motion variables, which it returns ``(n, 1)``."""
+        f.model.fit(X)
+        q = f.model.motion(X)
+        f.swept = float(np.ptp(q))
+        f.rss = float(np.sum((X - f.model.predict(q)) ** 2))
+        return q
+
     def _fit_all(self):
         X = self.X
         T = self.T
@@ -527,9 +538,9 @@ class OnlineEstimator:
             self.filters = [_ModelFilter(make_model(n, self.dim), self.order) for n in self.names]
             for f in self.filters:
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
-        w = max(self.min_samples, min(self.window, len(X)))
+        w = self._window()
         for f in self.filters:
-            started = getattr(f, "x", None) is not None
+            started = f.x is not None
             if started and f.model.dof == 0:
                 f.model.fit(X)  # the static filter's state is the position itself: nothing to map
                 continue
@@ -539,10 +550,7 @@ class OnlineEstimator:
                 x0 = float(f.x[0])
                 p_old = f.model.predict1(x0)
                 J_old = f.model.jacobian1(x0)
-                f.model.fit(X)
-                qs = f.model.motion(X)[:, 0]
-                f.swept = float(np.ptp(qs))
-                f.rss = float(np.sum((X - f.model.predict(qs)) ** 2))
+                qs = self._refit(f, X)[:, 0]
                 q_new = float(f.model.motion(p_old[None, :])[0, 0])
                 if f.model.name == "revolute":
                     q_new = qs[-1] + math.remainder(q_new - qs[-1], 2.0 * math.pi)
@@ -551,12 +559,10 @@ class OnlineEstimator:
                 f.x = np.array([q_new, s_ * f.x[1]])
                 f.P = f.P * (s_ * s_)
                 continue
-            f.model.fit(X)
             if f.model.dof == 1:
-                q = f.model.motion(X)
-                f.swept = float(np.ptp(q))
-                f.rss = float(np.sum((X - f.model.predict(q)) ** 2))  # squared residuals, for _separable
+                self._refit(f, X)
             else:
+                f.model.fit(X)
                 f.swept = 0.0
             f.start(X[-w:], np.diff(T[-w:]), self.sigma, a)
         if self._rev is not None and self._pri is not None:
@@ -650,9 +656,10 @@ class OnlineEstimator:
             cfg["length_range"] = [float(q.min()), float(q.max())]
         cfg["rms_residual"] = float(np.sqrt(np.mean(f.model.residuals(X) ** 2)))
         dt = float(np.median(np.diff(T))) if n > 1 else 1.0
-        f.start(X[-max(self.min_samples, min(self.window, n)):], np.diff(T[-max(self.min_samples, min(self.window, n)):]),
-                self.sigma, self._accel(self.sigma))
-        pred = f.predict_ahead(horizon, dt, self._accel(self.sigma))[:, :dim]
+        w = self._window()
+        a = self._accel(self.sigma)
+        f.start(X[-w:], np.diff(T[-w:]), self.sigma, a)
+        pred = f.predict_ahead(horizon, dt, a)[:, :dim]
         return OnlineResult(model, probs, decided_at, self.first_decision, hist, self.names, cfg, q, pred,
                             self.sigma, n, dim, fits)
 

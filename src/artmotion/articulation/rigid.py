@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from artmotion.articulation.models import _orthonormal_to
 from artmotion.errors import InputError
 from artmotion.geometry.rotations import quat_to_matrix
 
@@ -198,7 +199,7 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
         # translation in a plane, no rotation: plane constrained
         n = Vt[2]
         res["plane_residual"] = float(np.abs(t @ n).max())
-        if np.abs(t @ n).max() < lin_tol:
+        if res["plane_residual"] < lin_tol:
             return RigidResult("planar", {"normal": n.tolist()}, np.column_stack([t @ Vt[0], t @ Vt[1], np.zeros(F)]), R, t, res)
         return RigidResult("rigid", {}, np.column_stack([t, rv]), R, t, res)
     # a common rotation axis: the rotation vectors lie on one line
@@ -209,13 +210,12 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
     signed = rv @ axis
     if off_axis < ang_tol:
         # fixed points: (R_f - I) c + t_f = 0 for all f (least squares over frames)
-        Acat = np.concatenate([R[f] - np.eye(3) for f in range(F)])
-        bcat = -np.concatenate([t[f] for f in range(F)])
         # c is defined up to the axis direction: regularise by adding axis . c = 0
-        Acat = np.vstack([Acat, axis[None, :]])
-        bcat = np.concatenate([bcat, [0.0]])
+        RmI = R - np.eye(3)
+        Acat = np.vstack([RmI.reshape(3 * F, 3), axis[None, :]])
+        bcat = np.concatenate([-t.reshape(3 * F), [0.0]])
         c, *_ = np.linalg.lstsq(Acat, bcat, rcond=None)
-        fix = np.linalg.norm(np.einsum("fij,j->fi", R - np.eye(3), c) + t, axis=1)
+        fix = np.linalg.norm(np.einsum("fij,j->fi", RmI, c) + t, axis=1)
         res["fixed_point_residual"] = float(fix.max())
         if fix.max() < lin_tol + ang_tol * np.linalg.norm(c - centre):
             return RigidResult("revolute", {"axis": axis.tolist(), "point": c.tolist()}, signed[:, None], R, t, res)
@@ -223,10 +223,8 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
         # the displacement of the axis point c, (R c + t - c), must stay perpendicular to n
         disp = np.einsum("fij,j->fi", R, centre) + t - centre
         res["plane_residual"] = float(np.abs(disp @ axis).max())
-        if np.abs(disp @ axis).max() < lin_tol:
-            e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(axis, e1)
+        if res["plane_residual"] < lin_tol:
+            e1, e2 = _orthonormal_to(axis)
             return RigidResult("planar", {"normal": axis.tolist(), "point": centre.tolist()},
                                np.column_stack([disp @ e1, disp @ e2, signed]), R, t, res)
     return RigidResult("rigid", {}, np.column_stack([t, rv]), R, t, res)

@@ -366,8 +366,8 @@ class EKFSlam:
             self.first_seen[i] = self.k
         # the point's noise: the observation noise carried to the world frame (the robot's own
         # uncertainty is common to all landmarks and mostly slow drift, not white noise)
-        C = Gz @ self.R1 @ Gz.T
-        est.noise = max(est.noise or 0.0, self.point_noise, math.sqrt(float(np.linalg.eigvalsh(C)[-1])))
+        Pm = Gz @ self.R1 @ Gz.T
+        est.noise = max(est.noise or 0.0, self.point_noise, math.sqrt(float(np.linalg.eigvalsh(Pm)[-1])))
         est.update(m, float(self.k))  # time in steps: the Taylor models work per sample
         probs = est.probabilities
         if not probs:
@@ -375,7 +375,6 @@ class EKFSlam:
         name = max(probs, key=probs.get)
         if probs[name] <= self.threshold:
             return
-        Pm = Gz @ self.R1 @ Gz.T
         if name == "static":
             self._add_static(i, z)
             return
@@ -387,9 +386,17 @@ class EKFSlam:
         if name == "revolute":
             qs = model.motion(np.asarray(est.X))[:, 0]
             q = q + 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
-        Jq = model.jacobian(np.array([q]))[:2, 0]
-        Gq = Jq / (Jq @ Jq)
         qdot, vdot = float(f.x[1]) / self.dt, float(f.P[1, 1]) / self.dt**2  # per step -> per second
+        if name == "revolute":
+            # the circle lies in z = 0: express the angle in world x, y (world angle = atan2 of
+            # (point - centre)), so the block's state is (phi, phi') with phi = phi0 + sgn q
+            e1, e2 = model.u, model.v
+            sgn = 1.0 if np.cross(e1, e2)[2] > 0 else -1.0
+            q, qdot = math.atan2(e1[1], e1[0]) + sgn * q, sgn * qdot
+            Jq = np.array([-math.sin(q), math.cos(q)]) * float(model.radius)
+        else:
+            Jq = model.jacobian(np.array([q]))[:2, 0]
+        Gq = Jq / (Jq @ Jq)
         Gx_full = np.vstack([Gq @ Gx, np.zeros(3)])
         extra = np.diag([Gq @ Pm @ Gq, vdot])
         b = self._append(i, name, np.array([q, qdot]), Gx_full, extra)
@@ -397,21 +404,7 @@ class EKFSlam:
             b.origin, b.direction = model.origin[:2].copy(), model.direction[:2] / np.linalg.norm(model.direction[:2])
             scale = 1.0
         else:
-            e1, e2 = model.u, model.v  # the circle lies in z = 0: express the angle in world x, y
             b.centre, b.radius = model.centre[:2].copy(), float(model.radius)
-            # rotate the angle convention to world axes: world angle = atan2 of (point - centre)
-            phi0 = math.atan2(e1[1], e1[0])
-            sgn = 1.0 if np.cross(e1, e2)[2] > 0 else -1.0
-            self.mu[b.start] = phi0 + sgn * q
-            self.mu[b.start + 1] = sgn * qdot
-            Jw = np.array([-math.sin(self.mu[b.start]), math.cos(self.mu[b.start])]) * b.radius
-            Gw = Jw / (Jw @ Jw)
-            sl = slice(b.start, b.start + 2)
-            Gx_full = np.vstack([Gw @ Gx, np.zeros(3)])
-            cross = Gx_full @ self.P[:3, : b.start]
-            self.P[sl, : b.start] = cross
-            self.P[: b.start, sl] = cross.T
-            self.P[sl, sl] = Gx_full @ self.P[:3, :3] @ Gx_full.T + np.diag([Gw @ Pm @ Gw, vdot])
             scale = 1.0 / b.radius**2
         b.F, b.Q = taylor_model(2, self.dt, self.motion_var * scale, 1)
 

@@ -43,12 +43,15 @@ def filter_order(q, t, order: int, process_var: float, obs_var: float, horizon: 
     filtered[0] = q[0]
     ll = 0.0
     cache = {}
+
+    def model(dt):
+        FQ = cache.get(dt)
+        if FQ is None:
+            FQ = cache[dt] = taylor_model(order, dt, process_var)
+        return FQ
+
     for k in range(1, n):
-        dt = t[k] - t[k - 1]
-        if dt not in cache:
-            cache[dt] = taylor_model(order, dt, process_var)
-        F, Q = cache[dt]
-        kf.predict(F, Q)
+        kf.predict(*model(t[k] - t[k - 1]))
         predicted[k] = kf.x[0]
         lk = kf.update([q[k]])
         if k >= order:
@@ -57,10 +60,7 @@ def filter_order(q, t, order: int, process_var: float, obs_var: float, horizon: 
         if horizon and k + horizon < n:
             x = kf.x.copy()
             for j in range(horizon):
-                dtj = t[k + j + 1] - t[k + j]
-                if dtj not in cache:
-                    cache[dtj] = taylor_model(order, dtj, process_var)
-                x = cache[dtj][0] @ x
+                x = model(t[k + j + 1] - t[k + j])[0] @ x
             ahead[k + horizon] = x[0]
     return {"filtered": filtered, "predicted": predicted, "loglik": ll, "ahead": ahead}
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from artmotion.errors import InputError
+from artmotion.geometry.rotations import axis_angle_to_matrix
 
 __all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
 
@@ -138,25 +139,23 @@ def fit_poses(positions, quats, time=None, noise: float = 0.005, min_samples: in
         if labels[j] != final.model:
             break
         decided_at = ks[j] - 1
-    first = next(((lab, k - 1) for lab, k in zip(labels, ks)), None)
     motion = np.asarray(final.motion, dtype=float).reshape(n, -1)
     # short prediction: constant velocity of the motion variables over the last samples, mapped back
     pred = []
-    if final.model in ("static",):
+    if final.model == "static":
         pred = [P[0].tolist()] * horizon
     elif n >= 2:
-        v = (P[-1] - P[max(0, n - 5)]) / max(1, min(4, n - 1))
+        span = max(1, min(4, n - 1))
         if final.model == "revolute":
             ax = np.asarray(final.configuration["axis"])
             c = np.asarray(final.configuration["point"])
-            from artmotion.geometry.rotations import axis_angle_to_matrix
-
-            w = (motion[-1, 0] - motion[max(0, n - 5), 0]) / max(1, min(4, n - 1))
+            w = (motion[-1, 0] - motion[max(0, n - 5), 0]) / span
             pred = [(axis_angle_to_matrix(ax, w * (h + 1)) @ (P[-1] - c) + c).tolist() for h in range(horizon)]
         else:
+            v = (P[-1] - P[max(0, n - 5)]) / span
             pred = [(P[-1] + v * (h + 1)).tolist() for h in range(horizon)]
     return {**base, "model": final.model, "decided_at": decided_at,
-            "first_decision": {"model": first[0], "at": first[1]} if first else None,
+            "first_decision": {"model": labels[0], "at": ks[0] - 1},  # the shortest prefix's answer
             "configuration": final.configuration, "residuals": final.residuals,
             "motion": motion.tolist(), "prediction": pred}
 

@@ -77,10 +77,10 @@ def grounding_dataset(
     seed: int = typer.Option(0, "--seed", help="Random seed (same seed, same dataset)."),
 ):
     """Make the thesis's 156 shapes-and-colours examples: images and spoken '<colour> <shape>'."""
-    from artmotion.language.grounding.dataset import make_dataset
+    from artmotion.language.grounding.dataset import make_dataset, read_index
 
     index = make_dataset(out, seed=seed)
-    typer.echo(f"wrote {index.parent} ({sum(1 for _ in open(index)) - 1} examples, index {index.name})")
+    typer.echo(f"wrote {index.parent} ({len(read_index(index))} examples, index {index.name})")
 
 
 @grounding_app.command("eval")

@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.language.grammar import Triplet, join_subjects, noun_phrase, render
+from artmotion.geometry import box_center
+from artmotion.language.grammar import SIDES, Triplet, join_subjects, noun_phrase, render
 
 
 @dataclass
@@ -97,13 +98,13 @@ def tracks_from_mot(rows: np.ndarray) -> dict[int, Track]:
         f = r[:, 0].astype(int)
         f, first = np.unique(f, return_index=True)  # duplicate frames: keep the first box
         r = r[first]
-        cx, cy = r[:, 2] + r[:, 4] / 2, r[:, 3] + r[:, 5] / 2
+        c = box_center(r[:, 2:6])
         frames = np.arange(f[0], f[-1] + 1)
         out[int(tid)] = Track(
             tid=int(tid),
             frames=frames,
-            cx=np.interp(frames, f, cx),
-            cy=np.interp(frames, f, cy),
+            cx=np.interp(frames, f, c[:, 0]),
+            cy=np.interp(frames, f, c[:, 1]),
             height=float(max(np.median(r[:, 5]), 1.0)),
             first_box=r[0, 2:6].copy(),
             last_box=r[-1, 2:6].copy(),
@@ -141,12 +142,17 @@ def _velocity(t: Track, p: DescribeParams) -> tuple[np.ndarray, np.ndarray]:
     return (sx[b] - sx[a]) / span, (sy[b] - sy[a]) / span
 
 
-def motion_segments(t: Track, p: DescribeParams) -> list[tuple[int, int, str | None]]:
-    """Cut a track into pieces of constant direction: ``(first, last, adjective or None=still)``."""
+def motion_segments(
+    t: Track, p: DescribeParams, velocity: tuple[np.ndarray, np.ndarray] | None = None
+) -> list[tuple[int, int, str | None]]:
+    """Cut a track into pieces of constant direction: ``(first, last, adjective or None=still)``.
+
+    ``velocity`` is the track's ``_velocity(t, p)`` when the caller has it already.
+    """
     n = len(t.frames)
     if n < 2:
         return [(int(t.frames[0]), int(t.frames[-1]), None)]
-    vx, vy = _velocity(t, p)
+    vx, vy = _velocity(t, p) if velocity is None else velocity
     speed = np.hypot(vx, vy) / t.height
     labels = [None if s < p.still else direction_word(x, y, p.diagonal) for s, x, y in zip(speed, vx, vy)]
     # run-length encode, then absorb short runs into the longer neighbour
@@ -205,7 +211,10 @@ def infer_image_size(rows: np.ndarray) -> tuple[float, float]:
     return float(np.max(rows[:, 2] + rows[:, 4])), float(np.max(rows[:, 3] + rows[:, 5]))
 
 
-def _together_runs(a: Track, b: Track, p: DescribeParams) -> list[tuple[int, int, bool]]:
+def _together_runs(
+    a: Track, b: Track, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
+) -> list[tuple[int, int, bool]]:
+    """Runs ``(first, last, moving)`` in which tracks ``a`` and ``b`` (velocities ``va``, ``vb``) are together."""
     f0, f1 = max(a.frames[0], b.frames[0]), min(a.frames[-1], b.frames[-1])
     if f1 - f0 + 1 < p.min_together:
         return []
@@ -213,8 +222,8 @@ def _together_runs(a: Track, b: Track, p: DescribeParams) -> list[tuple[int, int
     ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
     h = 0.5 * (a.height + b.height)
     dist = np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h
-    vax, vay = _velocity(a, p)
-    vbx, vby = _velocity(b, p)
+    vax, vay = va
+    vbx, vby = vb
     dv = np.hypot(vax[ia] - vbx[ib], vay[ia] - vby[ib]) / h
     moving = 0.5 * (np.hypot(vax[ia], vay[ia]) + np.hypot(vbx[ib], vby[ib])) / h >= p.still
     ok = (dist < p.near) & (dv < p.same_velocity)
@@ -288,9 +297,9 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
             rows = list(csv.reader(fh))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read CSV: {exc}", path=path) from None
-    if not rows or "image" not in [h.strip() for h in rows[0]]:
+    header = [h.strip() for h in rows[0]] if rows else []
+    if "image" not in header:
         raise InputError("not a pose prediction CSV: no 'image' column in the header", path=path, line=1)
-    header = [h.strip() for h in rows[0]]
     angles = [h for h in header if h != "image" and not h.endswith("_std")]
     if column is None:
         cands = [h for h in angles if "open" in h.lower()]
@@ -405,7 +414,7 @@ def describe(
             span = (f, int(ev.get("end_frame", f)))
             if kind in ("enter", "exit") and ids:
                 side = ev.get("side")
-                side = side if side in ("left", "right", "top", "bottom", "inside") else None
+                side = side if side in SIDES else None
                 verb = {"enter": "enters", "exit": "exits"}[kind]
                 if side == "inside":
                     verb = "appears" if kind == "enter" else "vanishes"
@@ -430,8 +439,9 @@ def describe(
                             (int(t.frames[-1]),) * 2, [tid]))
 
     # motion of each track
+    vel = {tid: _velocity(t, p) for tid, t in table.items()}
     for tid, t in table.items():
-        for a, b, adj in motion_segments(t, p):
+        for a, b, adj in motion_segments(t, p, vel[tid]):
             if b - a + 1 < 2:
                 continue
             add(Triplet(subj(tid), "stays" if adj is None else "moves", adj, None, (a, b), [tid]))
@@ -441,7 +451,7 @@ def describe(
     walks: list[tuple[int, int, int, int]] = []
     for i, ta in enumerate(ids):
         for tb in ids[i + 1 :]:
-            for a, b, moving in _together_runs(table[ta], table[tb], p):
+            for a, b, moving in _together_runs(table[ta], table[tb], vel[ta], vel[tb], p):
                 if cls_of(ta) == cls_of(tb) and moving:
                     walks.append((ta, tb, a, b))
                 else:

@@ -55,16 +55,12 @@ def train_cmd(
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
-    if feature not in ("hog", "lbp"):
-        raise InputError(f"unknown feature {feature!r}; choose hog or lbp")
-    if method not in ("auto", "exact", "sparse"):
-        raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
     if components < 0:
         raise InputError(f"--components must be 0 or positive, got {components}")
+    reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
+                        seed=seed, progress=True)  # checks feature and method before any image is read
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     t = time.perf_counter()
-    reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
-                        seed=seed, progress=True)
     reg.fit(imgs, Y, names)
     reg.save(model)
     hyp = ", ".join(f"{n}: l={h.length:.3g} sn={np.sqrt(h.sn2) * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
@@ -123,9 +119,7 @@ def eval_cmd(
 
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
-    for f in feature:
-        if f not in ("hog", "lbp"):
-            raise InputError(f"unknown feature {f!r}; choose hog or lbp")
+    regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
     unseen = {}
@@ -141,7 +135,7 @@ def eval_cmd(
     results = {}
     for f in feature:
         t = time.perf_counter()
-        X = PoseRegressor(feature=f).features(imgs)
+        X = regs[f].features(imgs)
         mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f, method=method)
         res = summary(Y, mean, std, fmean, cols, names)
         res["seconds"] = time.perf_counter() - t
@@ -149,7 +143,7 @@ def eval_cmd(
             write_predictions(out / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
             write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
         if unseen:
-            reg = PoseRegressor(feature=f, method=method).fit(X, Y, names)
+            reg = regs[f].fit(X, Y, names)
         for key, (upaths, uimgs, uY) in unseen.items():
             um, us = reg.predict(uimgs, return_std=True)
             ufm, ufs = reg.make_filter().filter(um, us)

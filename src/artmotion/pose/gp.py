@@ -162,11 +162,11 @@ class ExactGP(_BaseGP):
     def predict(self, X: np.ndarray, return_std: bool = False):
         X = np.atleast_2d(np.asarray(X))
         # the kernel row is the cost: float32 (changes the mean by < 0.01° on the pose data)
-        D2 = sqdist(X.astype(np.float32), self._X32, None, self._X2_32)
+        D2 = sqdist(np.asarray(X, dtype=np.float32), self._X32, None, self._X2_32)
         mu = np.empty((len(X), self.n_outputs))
         var = np.empty_like(mu)
         for k, h in enumerate(self.hypers):
-            Ks = np.exp(D2 * np.float32(-0.5 / (h.length * h.length))) * np.float32(h.sf2)
+            Ks = se_kernel(D2, h.length, h.sf2)  # stays float32 (Python scalars are weakly typed)
             mu[:, k] = Ks @ self.alpha[:, k]
             if return_std and self.neighbours is None:
                 V = solve_triangular(self.L[k], Ks.T.astype(np.float64), lower=True, check_finite=False)
@@ -209,12 +209,13 @@ class SparseGP(_BaseGP):
     def __init__(self, X: np.ndarray, Ys: np.ndarray, hypers, y_mean, y_std, inducing: np.ndarray):
         super().__init__(hypers, y_mean, y_std)
         X = np.asarray(X, dtype=np.float64)
-        self.X_train = X.astype(np.float32)
+        self.X = X.astype(np.float32)
         self.Ys = np.asarray(Ys, dtype=np.float64)
         self.inducing = np.asarray(inducing, dtype=np.int64)
         self.Z = np.ascontiguousarray(X[self.inducing])
         self.Z2 = (self.Z * self.Z).sum(1)
         self._Z32 = self.Z.astype(np.float32)
+        self._Z2_32 = self.Z2.astype(np.float32)
         m = len(self.Z)
         Dmm = sqdist(self.Z, self.Z, self.Z2, self.Z2)
         Dmn = sqdist(self.Z, X, self.Z2)
@@ -236,11 +237,11 @@ class SparseGP(_BaseGP):
 
     def predict(self, X: np.ndarray, return_std: bool = False):
         X = np.atleast_2d(np.asarray(X))
-        D2 = sqdist(X.astype(np.float32), self._Z32, None, self.Z2.astype(np.float32))
+        D2 = sqdist(np.asarray(X, dtype=np.float32), self._Z32, None, self._Z2_32)
         mu = np.empty((len(X), self.n_outputs))
         var = np.empty_like(mu)
         for k, h in enumerate(self.hypers):
-            Ks = np.exp(D2 * np.float32(-0.5 / (h.length * h.length))) * np.float32(h.sf2)  # float32
+            Ks = se_kernel(D2, h.length, h.sf2)  # float32
             mu[:, k] = Ks @ self.c[:, k]
             if return_std:
                 q = ((Ks @ self.M[k]) * Ks).sum(1, dtype=np.float64)

@@ -110,6 +110,8 @@ class PoseRegressor:
                  seed: int = 0, progress: bool = False, inducing: str = "kmeans"):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
+        if method not in ("auto", "exact", "sparse"):
+            raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
         self.feature = feature
         self.cell = F.default_cell(feature) if cell is None else int(cell)
         self.size = (int(size[0]), int(size[1]))
@@ -201,12 +203,10 @@ class PoseRegressor:
     # -- persistence
     def save(self, path: str | os.PathLike) -> None:
         gp = self.gp_
-        X = gp.X if isinstance(gp, ExactGP) else gp.X_train
-        Ys = gp.Ys
         data = dict(
             magic=np.array(MAGIC), version=np.array(VERSION), feature=np.array(self.feature),
             cell=np.array(self.cell), size=np.array(self.size), blur=np.array(self.blur), names=np.array(self.names_),
-            method=np.array(gp.kind), X=X.astype(np.float32), Ys=Ys, y_mean=gp.y_mean, y_std=gp.y_std,
+            method=np.array(gp.kind), X=gp.X.astype(np.float32), Ys=gp.Ys, y_mean=gp.y_mean, y_std=gp.y_std,
             hypers=np.array([h.as_array() for h in gp.hypers]), accel_var=self.accel_var_,
             var_scale=gp.var_scale,
             inducing=gp.inducing if isinstance(gp, SparseGP) else np.zeros(0, np.int64),

@@ -40,13 +40,11 @@ def track_command(
 ) -> None:
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
     import sys
-
-    from artmotion.io import write_events, write_mot
-    from artmotion.tracking import track
-
     from pathlib import Path
 
     from artmotion.errors import InputError
+    from artmotion.io import write_events, write_mot
+    from artmotion.tracking import track
 
     for path in (out, events, video):
         if path and Path(path).is_dir():

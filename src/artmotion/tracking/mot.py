@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from artmotion.geometry import box_center, box_from_center, iou, iou_matrix, overlap_ratio, union_box
+from artmotion.geometry import box_center, box_from_center, clip_box, iou, iou_matrix, overlap_ratio, union_box
 from artmotion.tracking.appearance import kl_divergence, rgb_histogram
 from artmotion.tracking.experts import (
     Entity,
@@ -143,6 +143,11 @@ class Group:
     box: np.ndarray
 
 
+def _detection_hist(frame: Frame, j: int) -> np.ndarray | None:
+    """RGB histogram of ``frame.detections[j]``, computed once per frame (association, update, split)."""
+    return frame.cached(f"det_hist{j}", lambda: rgb_histogram(frame.small, frame.detections[j, :4], frame.scale))
+
+
 def side_of(box, width: int, height: int, margin: float = 0.3) -> str:
     """Where a box touches the image: ``left``/``right``/``top``/``bottom`` or ``inside``.
 
@@ -172,7 +177,6 @@ class MultiObjectTracker:
         self.tracks: list[Track] = []
         self.all_tracks: list[Track] = []
         self.groups: list[Group] = []
-        self.events: list[dict] = []
         self.next_id = 1
         self.next_group = 1
         self.prev: Frame | None = None
@@ -181,7 +185,6 @@ class MultiObjectTracker:
         self.last_frame = 0
         self.first_frame: int | None = None
         self.online_rows: list = []
-        self.kill_on_exit = self.cfg.kill_on_exit
         self.relabel: dict[int, int] = {}
         self.group_log: dict[int, dict[int, tuple]] = {}   # frame -> {group id: member track ids}
         self.piece_span: dict[int, tuple[int, int]] = {}    # track id -> frames it gives the output
@@ -198,16 +201,14 @@ class MultiObjectTracker:
         t.sizes.append(box[2:4].copy())
         self.next_id += 1
         t.set_box(frame.number, box, "det", det[4])
-        self._update_hist(t, frame, box, clean=True)
+        self._update_hist(t, frame, box, rgb_histogram(frame.small, box, frame.scale))
         t.fg.append(foreground_fraction(frame, box))
         self.tracks.append(t)
         self.all_tracks.append(t)
         return t
 
-    def _update_hist(self, t: Track, frame: Frame, box, clean: bool) -> None:
-        if not clean:
-            return
-        h = rgb_histogram(frame.small, box, frame.scale)
+    def _update_hist(self, t: Track, frame: Frame, box, h: np.ndarray | None) -> None:
+        """Blend ``h``, the RGB histogram of ``box`` on ``frame``, into the track's appearance."""
         if h is None:
             return
         t.hist = h if t.hist is None else 0.7 * t.hist + 0.3 * h
@@ -273,7 +274,7 @@ class MultiObjectTracker:
             # IoU with the predicted box (the overlap condition of Eq. 2.4) plus appearance
             cost = -M
             if cfg.app_weight > 0:
-                dh = [rgb_histogram(frame.small, dets[j, :4], frame.scale) for j in cand]
+                dh = [_detection_hist(frame, j) for j in cand]
                 K = np.array([[min(kl_divergence(t.hist, h), 3.0) for h in dh] for t in tr])
                 cost = cost + cfg.app_weight * K
                 # a coasting track is only re-acquired by a detection that looks like it
@@ -313,8 +314,8 @@ class MultiObjectTracker:
                 t.last_det = n
                 t.set_box(n, box, "det", d[4])
                 others = [o.box for o in singles if o is not t]
-                clean = not others or iou_matrix(d[None, :4], np.array(others)).max() < 0.1
-                self._update_hist(t, frame, d[:4], clean)
+                if not others or iou_matrix(d[None, :4], np.array(others)).max() < 0.1:   # a clean view
+                    self._update_hist(t, frame, d[:4], _detection_hist(frame, matched[t.id]))
                 t.exit_at = None
                 t.gone = 0
                 t.hold = 0
@@ -333,13 +334,13 @@ class MultiObjectTracker:
                 if t.state == "confirmed" and self._stays(t, frame, box):
                     t.hold += 1     # a standing, undetected person: the image still shows it
                 if t.misses - t.hold > limit or t.misses > self._frames(cfg.max_hold) or self._outside(box):
-                    self._kill(t, n)
+                    self._kill(t)
                 elif not (cfg.occlusion_guard and self._occluded(t, singles)) and self._gone(t, frame, box):
                     if t.exit_at is None:
                         t.exit_at = n
                     t.gone += 1
-                    if self.kill_on_exit and t.gone >= cfg.exit_votes:
-                        self._kill(t, n)
+                    if cfg.kill_on_exit and t.gone >= cfg.exit_votes:
+                        self._kill(t)
                 else:
                     t.gone = 0
             t.fg.append(foreground_fraction(frame, t.box))
@@ -407,7 +408,7 @@ class MultiObjectTracker:
         score3 = kl_divergence(rgb_histogram(frame.small, t.hist_box, frame.scale), h_now)
         return score2 > score1 and score2 > score3
 
-    def _kill(self, t: Track, n: int) -> None:
+    def _kill(self, t: Track) -> None:
         t.state = "dead"
         t.hist_frame = None   # let the frame go
         if t.group is not None:
@@ -450,7 +451,6 @@ class MultiObjectTracker:
                     t.group = g
                     g.members.append(t)
                     g.box = union_box([m.box for m in g.members])
-                    self.events.append(self._group_event("merge", n, g))
         singles = [t for t in conf if t.group is None]
         if len(singles) < 2:
             return
@@ -471,19 +471,13 @@ class MultiObjectTracker:
                 for m in g.members:
                     if m.boxes[n][1] != "det":
                         m.boxes[n] = (m.box.copy(), "group", 0.0)
-                self.events.append(self._group_event("merge", n, g))
-
-    def _group_event(self, kind: str, n: int, g: Group) -> dict:
-        c = box_center(g.box)
-        return {"type": kind, "frame": int(n), "tracks": sorted(int(m.id) for m in g.members),
-                "group": int(g.id), "x": round(float(c[0]), 1), "y": round(float(c[1]), 1)}
 
     def _step_groups(self, frame: Frame, dets: np.ndarray, used: np.ndarray) -> None:
         cfg = self.cfg
         n = frame.number
         for g in list(self.groups):
             if len(g.members) < 2:
-                self._release(g, n, event=False)
+                self._release(g)
                 continue
             # members keep being predicted by their motion model (Eq. 2.10), group spans them (2.13)
             for m in g.members:
@@ -508,10 +502,10 @@ class MultiObjectTracker:
             if cfg.partial_split:
                 self._partial_split(g, frame, dets, used)
                 if len(g.members) < 2:
-                    self._release(g, n, event=False)
+                    self._release(g)
                     continue
             if n - g.start > self._frames(cfg.max_group) or self._members_apart(g):
-                self._release(g, n, event=True)
+                self._release(g)
 
     def _partial_split(self, g: Group, frame: Frame, dets: np.ndarray, used: np.ndarray) -> None:
         """A member leaves the group with a detection that is unambiguously its own (Fig. 2.4).
@@ -531,10 +525,8 @@ class MultiObjectTracker:
             if ious[k] < cfg.match_iou or np.sort(ious)[-2] >= 0.5 * cfg.match_iou:
                 continue
             m = g.members[k]
-            h = rgb_histogram(frame.small, dets[j, :4], frame.scale)
-            if not kl_divergence(m.hist, h) <= cfg.exit_kl:
+            if not kl_divergence(m.hist, _detection_hist(frame, j)) <= cfg.exit_kl:
                 continue
-            self.events.append(self._group_event("split", frame.number, g))
             g.members.remove(m)
             self._assign_member(m, dets[j], frame.number)
             used[j] = True
@@ -550,16 +542,14 @@ class MultiObjectTracker:
         """Resolve identities by KL divergence of RGB histograms (counts match), Sec. 2.5.2."""
         cfg = self.cfg
         n = frame.number
-        inside = sorted(inside, key=lambda j: -dets[j, 4])[: max(len(g.members), len(inside))]
+        inside = sorted(inside, key=lambda j: -dets[j, 4])
         members = list(g.members)
         C = np.zeros((len(members), len(inside)))
         for i, m in enumerate(members):
             for k, j in enumerate(inside):
-                h = rgb_histogram(frame.small, dets[j, :4], frame.scale)
-                kl = kl_divergence(m.hist, h)
+                kl = kl_divergence(m.hist, _detection_hist(frame, j))
                 C[i, k] = (kl if math.isfinite(kl) else 10.0) + cfg.split_motion * (1 - float(iou(m.box, dets[j, :4])))
         r, c = linear_sum_assignment(C)
-        self.events.append(self._group_event("split", n, g))
         for i, k in zip(r, c):
             self._assign_member(members[i], dets[inside[k]], n)
         for m in members:
@@ -592,11 +582,9 @@ class MultiObjectTracker:
         v = (box_center(d[:4]) - box_center(m.boxes[f0][0])) / (span * self.dt)
         m.entity.kf.x[1], m.entity.kf.x[3] = v
 
-    def _release(self, g: Group, n: int, event: bool) -> None:
+    def _release(self, g: Group) -> None:
         for m in g.members:
             m.group = None
-        if event and len(g.members) >= 2:
-            self.events.append(self._group_event("split", n, g))
         self.groups.remove(g)
 
     # ------------------------------------------------------------------ back-tracking (Fig. 2.9)
@@ -673,7 +661,7 @@ class MultiObjectTracker:
                     kind = "tentative"
                 rec[f] = [box, kind, score]
             # 2.5.3: constant-velocity interpolation of group segments
-            fs = [f for f in det_frames]
+            fs = det_frames
             for a, b in zip(fs[:-1], fs[1:]):
                 if b - a > 1 and any(rec[f][1] == "group" for f in range(a + 1, b) if f in rec):
                     self._interpolate(rec, a, b, "group")
@@ -799,13 +787,14 @@ class MultiObjectTracker:
         hist = {t.id: t.hist for t in self.all_tracks}
         max_gap = self._frames(cfg.max_gap)
         ends = {i: (min(r), max(r)) for i, r in pieces.items()}
+        starts = {j: self._end_state(rj, at_start=True) for j, rj in pieces.items()}
         cand = []
         for i, ri in pieces.items():
             fa, ca, va, sa = self._end_state(ri, at_start=False)
-            for j, rj in pieces.items():
+            for j in pieces:
                 if i == j or ends[j][0] <= ends[i][1]:
                     continue
-                fb, cb, vb, sb = self._end_state(rj, at_start=True)
+                fb, cb, vb, sb = starts[j]
                 gap = fb - fa
                 if gap < 1 or gap > max_gap:
                     continue
@@ -970,13 +959,9 @@ class MultiObjectTracker:
         if not len(rows):
             return np.zeros((0, 10)), []
         rows = rows[np.isin(rows[:, 1], list(keep_ids))] if keep_ids else rows[:0]
-        # clip to the image; drop boxes that left it
-        x0 = np.clip(rows[:, 2], 0, self.width)
-        y0 = np.clip(rows[:, 3], 0, self.height)
-        x1 = np.clip(rows[:, 2] + rows[:, 4], 0, self.width)
-        y1 = np.clip(rows[:, 3] + rows[:, 5], 0, self.height)
-        ok = (x1 - x0 > 1) & (y1 - y0 > 1)
-        rows = rows[ok]
+        # drop boxes that left the image (less than a pixel of them inside it)
+        inside = clip_box(rows[:, 2:6], self.width, self.height)
+        rows = rows[(inside[:, 2] > 1) & (inside[:, 3] > 1)]
         # renumber ids by first appearance
         order = sorted(set(rows[:, 1].astype(int)), key=lambda i: (rows[rows[:, 1] == i, 0].min(), i))
         new = {old: k + 1 for k, old in enumerate(order)}

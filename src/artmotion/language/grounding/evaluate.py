@@ -29,7 +29,7 @@ from artmotion.errors import InputError
 from artmotion.io import atomic_write, save_figure
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, read_image, render_shape, visual_features
-from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse
+from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse, estimate_linking
 
 #: Held-out colour–shape pairs, one round per line; every colour and shape stays in training.
 HOLDOUTS = (
@@ -110,8 +110,7 @@ def retrieval(F: dict, *, folds: int = 3, k: int = 5, seed: int = 0, example_pai
         ):
             speech["compositional"][concept] += list(_nearest_label(gen, ref, labels[tr]) == labels[te])
         gen = paired.visual_to_audio(np.hstack([F["color"][te], F["shape"][te]]))
-        pair_lab = np.char.add(np.char.add(F["colors"], " "), F["shapes"])
-        pred = _nearest_label(gen, F["audio"][tr], pair_lab[tr])
+        pred = _nearest_label(gen, F["audio"][tr], pair[tr])
         speech["paired"]["color"] += [p.split()[0] == c for p, c in zip(pred, F["colors"][te])]
         speech["paired"]["shape"] += [p.split()[1] == s for p, s in zip(pred, F["shapes"][te])]
     rate = lambda d: {c: float(np.mean(v)) for c, v in d.items()}  # noqa: E731
@@ -288,8 +287,6 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     t_feat = time.perf_counter() - t0
     if len(F["colors"]) < 6:
         raise InputError(f"too few examples ({len(F['colors'])}) to evaluate: at least 6 are needed", path=dataset)
-    from artmotion.language.grounding.sparse import estimate_linking
-
     H, M = estimate_linking([F["color"], F["shape"]], F["audio_seg"], seed=seed)
     t1 = time.perf_counter()
     ret = retrieval(F, seed=seed)

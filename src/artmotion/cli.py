@@ -13,7 +13,7 @@ import sys
 import typer
 
 from artmotion import __version__
-from artmotion.errors import ArtmotionError
+from artmotion.errors import ArtmotionError, Interrupted
 
 app = typer.Typer(
     name="artmotion",
@@ -38,11 +38,11 @@ def _root(
 
 
 def _register_all() -> None:
-    from artmotion.tracking import cli as tracking_cli
-    from artmotion.pose import cli as pose_cli
+    from artmotion.app import cli as app_cli
     from artmotion.articulation import cli as articulation_cli
     from artmotion.language import cli as language_cli
-    from artmotion.app import cli as app_cli
+    from artmotion.pose import cli as pose_cli
+    from artmotion.tracking import cli as tracking_cli
 
     for module in (tracking_cli, pose_cli, articulation_cli, language_cli, app_cli):
         module.register(app)
@@ -51,34 +51,78 @@ def _register_all() -> None:
 _register_all()
 
 
+def _terminate(signum, frame):
+    raise Interrupted(signum)
+
+
+#: what an interrupted command has kept: finished outputs are complete, nothing else is there
+_KEPT = "outputs finished before it are complete; nothing half-written was kept"
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"artmotion: {message}", file=sys.stderr)
+    return code
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the console script; returns the exit status."""
+    """Entry point of the console script; returns the exit status.
+
+    Every failure is one line on stderr: bad input (:class:`ArtmotionError`, a usage error, an
+    operating-system error such as a full disk) exits with 2; Ctrl-C with 130 and SIGTERM with 143,
+    after the outputs being written were removed; anything else is a bug (exit 1, with a hint).
+    ``ARTMOTION_DEBUG=1`` shows tracebacks.
+    """
+    import signal
+
+    import click
+
     debug = bool(os.environ.get("ARTMOTION_DEBUG"))
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, _terminate)
+        except ValueError:      # not the main thread (a test runner, an embedding program)
+            pass
     try:
-        app(args=argv, prog_name="artmotion", standalone_mode=True)
-    except SystemExit as exc:
-        code = exc.code
-        return code if isinstance(code, int) else (0 if code is None else 1)
+        code = app(args=argv, prog_name="artmotion", standalone_mode=False)
+        return code if isinstance(code, int) else 0
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    except click.ClickException as exc:
+        if debug:
+            raise
+        message = exc.format_message().strip().rstrip(".")
+        if not message:         # no arguments: the help was shown
+            return exc.exit_code
+        ctx = getattr(exc, "ctx", None)
+        cmd = ctx.command_path.removeprefix("artmotion").strip() if ctx is not None else ""
+        hint = f" (see 'artmotion {cmd + ' ' if cmd else ''}--help')"
+        return _fail(f"error: {cmd + ': ' if cmd else ''}{message}{hint}", 2)
     except ArtmotionError as exc:
         if debug:
             raise
-        print(f"artmotion: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        return _fail(f"error: {exc}", exc.exit_code)
     except OSError as exc:
         if debug:
             raise
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"artmotion: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("artmotion: interrupted", file=sys.stderr)
-        return 130
+        return _fail(f"error: {where}{exc.strerror or exc}", 2)
+    except (KeyboardInterrupt, click.exceptions.Abort):
+        return _fail(f"interrupted: {_KEPT}", 130)
+    except Interrupted as exc:
+        what = "interrupted" if exc.signum == signal.SIGINT else f"terminated by signal {exc.signum}"
+        _fail(f"{what}: {_KEPT}", 0)
+        # The outputs were cleaned up while unwinding. The process was asked to end: end it now,
+        # without the interpreter's teardown, where a decoder or encoder thread of OpenCV that
+        # the signal caught mid-start can abort the process (exit -6 instead of 128 + signal).
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(128 + exc.signum)
     except Exception as exc:  # a bug: still one line, unless debugging
         if debug:
             raise
-        print(
-            f"artmotion: internal error: {type(exc).__name__}: {exc} (ARTMOTION_DEBUG=1 shows the traceback)",
-            file=sys.stderr,
-        )
-        return 1
-    return 0
+        return _fail(f"internal error: {type(exc).__name__}: {exc} "
+                     "(a bug: please report it; ARTMOTION_DEBUG=1 shows the traceback)", 1)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

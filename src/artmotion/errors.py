@@ -26,3 +26,13 @@ class InputError(ArtmotionError, ValueError):
         if self.path is not None:
             where = self.path + (f":{line}" if line is not None else "") + ": "
         super().__init__(where + message)
+
+
+class Interrupted(BaseException):
+    """The user or the system asked the program to stop (SIGINT, SIGTERM, SIGHUP): raised by the
+    command line's signal handlers so that every ``finally`` runs and temporary outputs are
+    removed. Not an :class:`Exception`: nothing catches it by accident."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum

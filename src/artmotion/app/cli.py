@@ -21,10 +21,34 @@ def _db_option():
 
 
 def _db_path(db: Optional[Path], must_exist: bool = False) -> Path:
+    """The index file to use; checked to be an artmotion index when it exists (before any long
+    work), required to exist with ``must_exist``."""
+    from artmotion.app.index import check_index
+
     path = Path(db) if db is not None else Path(os.environ.get("ARTMOTION_INDEX", DEFAULT_DB))
-    if must_exist and not path.is_file():
-        raise InputError("no such index (add runs with `artmotion index add`)", path=path)
+    if path.exists():
+        check_index(path)
+    elif must_exist:
+        raise InputError("no such index (add runs with 'artmotion index add')", path=path)
     return path
+
+
+def _add_runs(db: Path, runs: list[Path]) -> int:
+    """Read and check every run's manifest, then add them all to the index at ``db`` (created
+    atomically if new); returns the number of videos in it."""
+    from artmotion.app.index import building
+    from artmotion.app.pipeline import load_run
+
+    manifests = [(run, load_run(run)) for run in runs]
+    with building(db) as idx:
+        for run, manifest in manifests:
+            idx.add_run(run, manifest)
+        return len(idx.videos())
+
+
+def _label(name: str, source: str | None, shared: set) -> str:
+    """A video's name, with its source path when another indexed video has the same name."""
+    return f"{name} ({source})" if name in shared and source else name
 
 
 def _run_dirs(path: Path) -> list[Path]:
@@ -51,9 +75,9 @@ def run_cmd(
                                               help="Pose model (artmotion pose train): adds opens/closes sentences."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
-    from artmotion.app.index import EventIndex
     from artmotion.app.pipeline import run_pipeline
 
+    db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video,
                        pose_model=pose_model)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
@@ -67,10 +91,9 @@ def run_cmd(
         typer.echo(f"metrics: MOTA {m['MOTA']:.3f}  IDF1 {m['IDF1']:.3f}  IDS {int(m['IDS'])}"
                    f"  FP {int(m['FP'])}  FN {int(m['FN'])}")
     typer.echo(f"report: {res.report}")
-    if index is not None:
-        with EventIndex(index) as idx:
-            idx.add_run(res.out_dir)
-        typer.echo(f"indexed in {index}")
+    if db is not None:
+        _add_runs(db, [res.out_dir])
+        typer.echo(f"indexed in {db}")
 
 
 index_app = typer.Typer(help="The SQLite event index of many videos.", no_args_is_help=True)
@@ -81,15 +104,13 @@ def index_add(
     path: Path = typer.Argument(..., help="A run folder (from `artmotion run`) or a folder of run folders."),
     db: Optional[Path] = _db_option(),
 ):
-    """Add runs to the event index (a video already there is replaced)."""
-    from artmotion.app.index import EventIndex
-
+    """Add runs to the event index (a run of a source already there replaces it)."""
     db_path = _db_path(db)
-    with EventIndex(db_path) as idx:
-        for run in _run_dirs(path):
-            name = idx.add_run(run)
-            typer.echo(f"added {name} ({run})")
-        typer.echo(f"{db_path}: {len(idx.videos())} videos")
+    runs = _run_dirs(path)
+    count = _add_runs(db_path, runs)
+    for run in runs:
+        typer.echo(f"added {run}")
+    typer.echo(f"{db_path}: {count} videos")
 
 
 @index_app.command("list")
@@ -97,13 +118,15 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
     """List the indexed videos with their counts of tracks, events and sentences."""
     from artmotion.app.index import EventIndex
 
-    with EventIndex(_db_path(db, must_exist=True)) as idx:
+    with EventIndex(_db_path(db, must_exist=True), write=False) as idx:
         videos = idx.videos()
+        shared = idx.shared_names()
     if as_json:
         typer.echo(json.dumps(videos, indent=1))
         return
     for v in videos:
-        typer.echo(f"{v['name']}: {v['frames']} frames, {v['tracks']} tracks, {v['events']} events, {v['sentences']} sentences")
+        typer.echo(f"{_label(v['name'], v['source'], shared)}: {v['frames']} frames, {v['tracks']} tracks, "
+                   f"{v['events']} events, {v['sentences']} sentences")
 
 
 def search_cmd(
@@ -116,8 +139,9 @@ def search_cmd(
     """Find the moments that match a query, best first."""
     from artmotion.app.index import EventIndex
 
-    with EventIndex(_db_path(db, must_exist=True)) as idx:
+    with EventIndex(_db_path(db, must_exist=True), write=False) as idx:
         hits = idx.search(query, video=video, limit=limit)
+        shared = idx.shared_names()
     if as_json:
         typer.echo(json.dumps([h.as_dict() for h in hits], indent=1))
         return
@@ -126,7 +150,7 @@ def search_cmd(
         raise typer.Exit(1)
     for h in hits:
         how = "" if h.match == "structured" else "  (text match)"
-        typer.echo(f"{h.score:5.2f}  {h.video}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}{how}")
+        typer.echo(f"{h.score:5.2f}  {_label(h.video, h.source, shared)}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}{how}")
 
 
 def batch_cmd(
@@ -140,28 +164,34 @@ def batch_cmd(
     """Run the pipeline on every item of FOLDER on Dask; failures are isolated and listed."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from artmotion.app.batch import run_batch
-    from artmotion.app.index import EventIndex
+    from artmotion.app.batch import BatchInterrupted, run_batch
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  transient=True) as progress:
-        task = progress.add_task("batch", total=None)
+    db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
+    try:
+        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      transient=True) as progress:
+            task = progress.add_task("batch", total=None)
 
-        def on_progress(outcome, done, total):
-            progress.update(task, completed=done, total=total,
-                            description=f"{Path(outcome.item).name}: {outcome.status}")
+            def on_progress(outcome, done, total):
+                progress.update(task, completed=done, total=total,
+                                description=f"{Path(outcome.item).name}: {outcome.status}")
 
-        report = run_batch(folder, out, workers=workers, scheduler=scheduler, force=force, on_progress=on_progress)
+            report = run_batch(folder, out, workers=workers, scheduler=scheduler, force=force,
+                               on_progress=on_progress)
+    except BatchInterrupted as exc:
+        r = exc.report
+        kept = r.by_status("done") + r.by_status("skipped")
+        typer.echo(f"batch interrupted: {len(kept)} finished (kept), {len(r.by_status('failed'))} failed, "
+                   f"{len(exc.not_run)} not run; run the same command again to resume", err=True)
+        raise
     done, skipped, failed = (report.by_status(s) for s in ("done", "skipped", "failed"))
     for o in done:
         typer.echo(f"done     {Path(o.item).name}: {o.tracks} tracks, {o.sentences} sentences, {o.seconds:.1f} s")
     for o in skipped:
         typer.echo(f"skipped  {Path(o.item).name}: already finished")
-    if index is not None:
-        with EventIndex(index) as idx:
-            for o in done + skipped:
-                idx.add_run(o.out_dir)
-        typer.echo(f"indexed {len(done) + len(skipped)} runs in {index}")
+    if db is not None and done + skipped:
+        count = _add_runs(db, [Path(o.out_dir) for o in done + skipped])
+        typer.echo(f"indexed {len(done) + len(skipped)} runs in {db} ({count} videos)")
     typer.echo(f"{len(done)} done, {len(skipped)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
                f" on {report.workers} worker(s)")
     if failed:

@@ -2,7 +2,14 @@
 
 Every run folder written by :func:`artmotion.app.pipeline.run_pipeline` (``run.json`` manifest,
 ``results.txt``, ``events.jsonl``) is added as one video: its tracks, events and sentences with
-frame ranges and track ids. :meth:`EventIndex.search` answers queries such as
+frame ranges and track ids. A video is keyed by its source's identity (the resolved path and a
+fingerprint of its content), not its name: runs of different videos that share a name all stay,
+and only re-indexing the same source replaces its entry.
+
+The index only touches files it made: an index carries ``PRAGMA application_id`` = "ARMT";
+listing and searching open it read-only and refuse any other file (someone else's SQLite
+database, an empty file); adding refuses them too, and a new index is built under a temporary
+name and appears only once its runs are in. :meth:`EventIndex.search` answers queries such as
 ``"person exits left"``: the query is parsed into subject / track id / verb / direction and
 matched on the structured columns, best first; when nothing structured matches, SQLite's FTS5
 full-text search over the sentences (every word of the query, stemmed; bm25 ranking) is
@@ -11,6 +18,7 @@ the fallback.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -20,12 +28,19 @@ from pathlib import Path
 
 from artmotion.errors import InputError
 
+#: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
+APPLICATION_ID = 0x41524D54
+#: ``PRAGMA user_version``: the schema's version (2: videos keyed by their source)
+SCHEMA_VERSION = 2
+
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS videos (
     id INTEGER PRIMARY KEY,
-    name TEXT NOT NULL UNIQUE,
-    source TEXT, run_dir TEXT, frames INTEGER, fps REAL, width INTEGER, height INTEGER,
-    added TEXT DEFAULT CURRENT_TIMESTAMP
+    name TEXT NOT NULL,
+    source TEXT NOT NULL,          -- the source's identity: resolved path and content fingerprint
+    source_path TEXT, run_dir TEXT, frames INTEGER, fps REAL, width INTEGER, height INTEGER,
+    added TEXT DEFAULT CURRENT_TIMESTAMP,
+    UNIQUE (source)
 );
 CREATE TABLE IF NOT EXISTS tracks (
     video_id INTEGER NOT NULL REFERENCES videos(id) ON DELETE CASCADE,
@@ -119,6 +134,7 @@ class Hit:
     subject: str | None = None
     run_dir: str | None = None
     match: str = "structured"
+    source: str | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -127,15 +143,30 @@ class Hit:
 class EventIndex:
     """The SQLite event index: ``EventIndex(path).add_run(run_dir)``, ``.search(query)``."""
 
-    def __init__(self, path: str | os.PathLike):
+    def __init__(self, path: str | os.PathLike, write: bool = True):
+        """Open the index at ``path`` (which must be an artmotion index, or absent: then it is
+        created; :func:`building` creates it atomically); ``write=False`` opens it read-only
+        (listing, searching) and never creates it."""
         self.path = Path(path)
+        self.write = write
+        exists = self.path.exists()
+        if exists:
+            check_index(self.path)
+        elif not write:
+            raise InputError("no such index (add runs with 'artmotion index add')", path=self.path)
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.conn = sqlite3.connect(self.path)
+            if write:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self.conn = sqlite3.connect(self.path)
+                if not exists:
+                    self.conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                    self.conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+                    self.conn.executescript(SCHEMA)
+            else:
+                self.conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
             self.conn.execute("PRAGMA foreign_keys = ON")
-            self.conn.executescript(SCHEMA)
         except sqlite3.DatabaseError as exc:
-            raise InputError(f"not an artmotion index ({exc})", path=self.path) from None
+            raise InputError(f"cannot open index: {exc}", path=self.path) from None
         except OSError as exc:
             raise InputError(f"cannot open index: {exc.strerror}", path=self.path) from None
 
@@ -149,51 +180,71 @@ class EventIndex:
         self.close()
 
     # ----------------------------------------------------------------- adding
-    def add_run(self, run_dir: str | os.PathLike) -> str:
-        """Add (or replace) the video of one run folder; returns the video name."""
+    def add_run(self, run_dir: str | os.PathLike, run: dict | None = None) -> str:
+        """Add the video of one run folder (replacing an earlier entry of the same source);
+        returns the video name. ``run``: its manifest, if already read (:func:`load_run`)."""
         from artmotion.app.pipeline import load_run
 
-        run = load_run(run_dir)
+        if not self.write:
+            raise InputError("the index is open read-only", path=self.path)
+        run = run if run is not None else load_run(run_dir)
         name = run["name"]
-        with self.conn:  # one transaction: a run is indexed whole or not at all
-            self.conn.execute(
-                "DELETE FROM sentences_fts WHERE sid IN"
-                " (SELECT s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE v.name = ?)",
-                (name,),
-            )
-            self.conn.execute("DELETE FROM videos WHERE name = ?", (name,))
-            info = run.get("sequence", {})
-            cur = self.conn.execute(
-                "INSERT INTO videos(name, source, run_dir, frames, fps, width, height) VALUES (?,?,?,?,?,?,?)",
-                (name, run.get("source"), str(Path(run_dir).resolve()), info.get("length"), info.get("fps"),
-                 info.get("width"), info.get("height")),
-            )
-            vid = cur.lastrowid
-            self.conn.executemany(
-                "INSERT INTO tracks VALUES (?,?,?,?,?)",
-                [(vid, t["id"], t["first_frame"], t["last_frame"], t["boxes"]) for t in run["track_summary"]],
-            )
-            self.conn.executemany(
-                "INSERT INTO events(video_id, type, frame, tracks, side) VALUES (?,?,?,?,?)",
-                [(vid, e["type"], e["frame"], json.dumps(e["tracks"]), e.get("side")) for e in run["events"]],
-            )
-            for s in run["sentences"]:
-                cur = self.conn.execute(
-                    "INSERT INTO sentences(video_id, sentence, subject, verb, action, adjective, tracks, frame_start,"
-                    " frame_end) VALUES (?,?,?,?,?,?,?,?,?)",
-                    (vid, s["sentence"], s.get("subject"), s.get("verb"), _canon_verb(s.get("verb")), s.get("adjective"),
-                     json.dumps(s.get("tracks", [])), s.get("frame_start"), s.get("frame_end")),
-                )
-                self.conn.execute("INSERT INTO sentences_fts(sentence, sid) VALUES (?, ?)", (s["sentence"], cur.lastrowid))
+        source = _source_key(run, run_dir)
+        try:
+            with self.conn:  # one transaction: a run is indexed whole or not at all
+                self._insert(run, name, source, run_dir)
+        except sqlite3.OperationalError as exc:
+            msg = str(exc)
+            if "readonly" in msg or "read-only" in msg:
+                raise InputError("cannot write the index: the file is read-only", path=self.path) from None
+            raise InputError(f"cannot write the index: {msg}", path=self.path) from None
         return name
 
+    def _insert(self, run: dict, name: str, source: str, run_dir) -> None:
+        self.conn.execute(
+            "DELETE FROM sentences_fts WHERE sid IN"
+            " (SELECT s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE v.source = ?)",
+            (source,),
+        )
+        self.conn.execute("DELETE FROM videos WHERE source = ?", (source,))
+        info = run.get("sequence", {})
+        cur = self.conn.execute(
+            "INSERT INTO videos(name, source, source_path, run_dir, frames, fps, width, height) VALUES (?,?,?,?,?,?,?,?)",
+            (name, source, run.get("source"), str(Path(run_dir).resolve()), info.get("length"), info.get("fps"),
+             info.get("width"), info.get("height")),
+        )
+        vid = cur.lastrowid
+        self.conn.executemany(
+            "INSERT INTO tracks VALUES (?,?,?,?,?)",
+            [(vid, t["id"], t["first_frame"], t["last_frame"], t["boxes"]) for t in run["track_summary"]],
+        )
+        self.conn.executemany(
+            "INSERT INTO events(video_id, type, frame, tracks, side) VALUES (?,?,?,?,?)",
+            [(vid, e["type"], e["frame"], json.dumps(e["tracks"]), e.get("side")) for e in run["events"]],
+        )
+        for s in run["sentences"]:
+            cur = self.conn.execute(
+                "INSERT INTO sentences(video_id, sentence, subject, verb, action, adjective, tracks, frame_start,"
+                " frame_end) VALUES (?,?,?,?,?,?,?,?,?)",
+                (vid, s["sentence"], s.get("subject"), s.get("verb"), _canon_verb(s.get("verb")), s.get("adjective"),
+                 json.dumps(s.get("tracks", [])), s.get("frame_start"), s.get("frame_end")),
+            )
+            self.conn.execute("INSERT INTO sentences_fts(sentence, sid) VALUES (?, ?)", (s["sentence"], cur.lastrowid))
+
     def videos(self) -> list[dict]:
+        """Every indexed video: name, source path, frames, fps and its counts of tracks, events and
+        sentences, by name (then source)."""
         rows = self.conn.execute(
-            "SELECT v.name, v.frames, v.fps, (SELECT count(*) FROM tracks t WHERE t.video_id = v.id),"
+            "SELECT v.name, v.source_path, v.frames, v.fps, (SELECT count(*) FROM tracks t WHERE t.video_id = v.id),"
             " (SELECT count(*) FROM events e WHERE e.video_id = v.id),"
-            " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name"
+            " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name, v.source_path"
         ).fetchall()
-        return [dict(zip(("name", "frames", "fps", "tracks", "events", "sentences"), r)) for r in rows]
+        return [dict(zip(("name", "source", "frames", "fps", "tracks", "events", "sentences"), r)) for r in rows]
+
+    def shared_names(self) -> set[str]:
+        """Names that more than one indexed video has (shown with their source paths)."""
+        rows = self.conn.execute("SELECT name FROM videos GROUP BY name HAVING count(*) > 1").fetchall()
+        return {r[0] for r in rows}
 
     # -------------------------------------------------------------- searching
     def search(self, text: str, video: str | None = None, limit: int = 20) -> list[Hit]:
@@ -214,7 +265,7 @@ class EventIndex:
 
     def _rows(self, video: str | None, where: str = "", params: tuple = ()):
         sql = (
-            "SELECT v.name, v.run_dir, s.sentence, s.subject, s.action, s.adjective, s.tracks, s.frame_start,"
+            "SELECT v.name, v.source_path, v.run_dir, s.sentence, s.subject, s.action, s.adjective, s.tracks, s.frame_start,"
             " s.frame_end, s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE 1=1"
         )
         if video is not None:
@@ -228,7 +279,7 @@ class EventIndex:
         where, params = (" AND s.action = ?", (q.verb,)) if q.verb is not None else ("", ())
         best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
             + 1.0 * (q.subject is not None)
-        for name, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
+        for name, src, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
             track_ids = json.loads(tracks)
             if q.track is not None and q.track not in track_ids:
                 continue
@@ -239,7 +290,8 @@ class EventIndex:
             if q.subject is not None and q.verb is None and q.direction is None and q.track is None and not subject_ok:
                 continue
             score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok
-            hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir))
+            hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir,
+                            source=src))
         return hits
 
     def _fulltext(self, text: str, video: str | None) -> list[Hit]:
@@ -255,8 +307,8 @@ class EventIndex:
             return []
         where = f" AND s.id IN ({','.join('?' * len(rank))})"
         return [Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), action, adjective, subject, run_dir,
-                    match="fulltext")
-                for name, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
+                    match="fulltext", source=src)
+                for name, src, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
                 in self._rows(video, where, tuple(rank))]
 
 
@@ -266,3 +318,49 @@ def _canon_verb(verb: str | None) -> str | None:
         return None
     words = verb.lower().split()
     return next((v for v, forms in VERBS.items() if v in words or any(w in forms for w in words)), verb.lower())
+
+
+def check_index(path: Path) -> None:
+    """Raise unless ``path`` is an artmotion index (read without writing a byte)."""
+    if not path.is_file():
+        raise InputError("not a file", path=path)
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            head = fh.read(100)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+    if size == 0:
+        raise InputError("not an artmotion index (empty file)", path=path)
+    if not head.startswith(b"SQLite format 3\x00") or len(head) < 100:
+        raise InputError("not an artmotion index (not a SQLite database)", path=path)
+    if int.from_bytes(head[68:72], "big") != APPLICATION_ID:   # the header's application_id field
+        raise InputError("not an artmotion index (a SQLite database of another program; left untouched)", path=path)
+    version = int.from_bytes(head[60:64], "big")                # user_version
+    if version != SCHEMA_VERSION:
+        raise InputError(f"an artmotion index of another version ({version}, this is {SCHEMA_VERSION}); "
+                         "build a new one with 'artmotion index add'", path=path)
+
+
+def _source_key(run: dict, run_dir) -> str:
+    """A run's source identity: its resolved path and content fingerprint (older manifests
+    without a fingerprint: the path alone, or the run folder's when there is no source)."""
+    path = run.get("source") or str(Path(run_dir).resolve())
+    return f"{path}#{run['fingerprint']}" if run.get("fingerprint") else path
+
+
+@contextlib.contextmanager
+def building(path: str | os.PathLike):
+    """An index open for writing at ``path``; a new one is built under a temporary name and
+    renamed onto ``path`` only if the block succeeds (a failed command creates nothing)."""
+    from artmotion.io import atomic_path
+
+    path = Path(path)
+    if path.exists():
+        with EventIndex(path, write=True) as idx:
+            yield idx
+        return
+    with atomic_path(path, suffix=".sqlite") as tmp:
+        tmp.unlink()                        # SQLite creates the file itself
+        with EventIndex(tmp, write=True) as idx:
+            yield idx

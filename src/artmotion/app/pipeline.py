@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,14 +80,9 @@ def describe_run(tracks, events, width, height, fps, object_class: str = "person
     return [_flat(t, object_class) for t in triplets]
 
 
-def track_poses(seq, tracks: np.ndarray, model_path, column: str | None = None,
-                min_boxes: int = 5) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """Per track, the Kalman-filtered opening angle of a pose model over the track's box crops.
-
-    The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
-    filtered in time (Eq. 3.6-3.7). ``column`` is the angle to describe, by default the first
-    whose name contains "open".
-    """
+def load_pose_model(model_path, column: str | None = None):
+    """The pose model and the index of its opening angle (``column``, by default the first
+    angle whose name contains "open"); loaded and checked before any long work."""
     from artmotion.pose.model import PoseRegressor
 
     model = PoseRegressor.load(model_path)
@@ -95,14 +91,24 @@ def track_poses(seq, tracks: np.ndarray, model_path, column: str | None = None,
         column = next((n for n in names if "open" in n.lower()), None)
     if column not in names:
         raise InputError(f"the pose model has no opening-angle column (angles: {', '.join(names)})", path=model_path)
-    k = names.index(column)
+    return model, names.index(column)
+
+
+def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per track, the Kalman-filtered opening angle (angle ``k`` of the pose ``model``, see
+    :func:`load_pose_model`) over the track's box crops.
+
+    The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
+    filtered in time (Eq. 3.6-3.7).
+    """
     crops: dict[int, list] = {}
-    for fno, frame in seq.frames():
-        for r in tracks[tracks[:, 0] == fno]:
-            x0, y0 = max(int(r[2]), 0), max(int(r[3]), 0)
-            x1, y1 = min(int(r[2] + r[4]), frame.shape[1]), min(int(r[3] + r[5]), frame.shape[0])
-            if x1 - x0 >= 4 and y1 - y0 >= 4:
-                crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy()))
+    with closing(seq.frames()) as frames:
+        for fno, frame in frames:
+            for r in tracks[tracks[:, 0] == fno]:
+                x0, y0 = max(int(r[2]), 0), max(int(r[3]), 0)
+                x1, y1 = min(int(r[2] + r[4]), frame.shape[1]), min(int(r[3] + r[5]), frame.shape[0])
+                if x1 - x0 >= 4 and y1 - y0 >= 4:
+                    crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy()))
     out = {}
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
     for tid, items in crops.items():
@@ -134,7 +140,9 @@ def run_pipeline(
 
     t0 = time.perf_counter()
     seq = open_sequence(source)
-    out = Path(out_dir) if out_dir is not None else Path("runs") / seq.name
+    pose = load_pose_model(pose_model) if pose_model is not None else None
+    fingerprint = source_fingerprint(seq)
+    out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     kwargs = {"det": det, "progress": progress}
     if experts is not None:
         kwargs["experts"] = experts
@@ -143,7 +151,7 @@ def run_pipeline(
     result = track(seq, **kwargs)  # the opened sequence: not probed a second time
     tracks = np.asarray(result.tracks, dtype=float).reshape(-1, 10)
     events = list(result.events)
-    poses = track_poses(seq, tracks, pose_model) if pose_model is not None else None
+    poses = track_poses(seq, tracks, *pose) if pose is not None else None
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
     if seq.gt_path is not None and Path(seq.gt_path).is_file():
@@ -157,6 +165,7 @@ def run_pipeline(
         "artmotion": __version__,
         "name": seq.name,
         "source": str(Path(source).resolve()),
+        "fingerprint": fingerprint,
         "sequence": {"length": seq.length, "fps": seq.fps, "width": seq.width, "height": seq.height},
         "files": {"results": "results.txt", "events": "events.jsonl", "sentences": "sentences.txt",
                   "report": "report.html", **({"video": "annotated.mp4"} if video else {})},
@@ -169,7 +178,7 @@ def run_pipeline(
     write_report(out / "report.html", seq, tracks, manifest)
     manifest["seconds"] = round(time.perf_counter() - t0, 3)
     with atomic_write(out / MANIFEST) as fh:
-        json.dump(manifest, fh, indent=1)
+        json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, events, sentences, metrics, manifest["seconds"])
 
 
@@ -178,15 +187,88 @@ def is_finished(run_dir: str | os.PathLike) -> bool:
 
 
 def load_run(run_dir: str | os.PathLike) -> dict:
-    """Read a run folder's manifest (raises :class:`InputError` if it is missing or corrupt)."""
+    """Read a run folder's manifest; an :class:`InputError` naming it when it is missing, not
+    JSON, or its fields are not what :func:`run_pipeline` writes (types checked)."""
     path = Path(run_dir) / MANIFEST
     if not path.is_file():
         raise InputError(f"not a finished artmotion run (no {MANIFEST})", path=run_dir)
     try:
         run = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"corrupt manifest: {exc}", path=path) from None
+    problem = _manifest_problem(run)
+    if problem:
+        raise InputError(f"corrupt manifest: {problem}", path=path)
+    return run
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _int_list(v) -> bool:
+    return isinstance(v, list) and all(_is_int(x) for x in v)
+
+
+def _manifest_problem(run) -> str | None:
+    """What in a manifest is not of the right type, or ``None``."""
+    if not isinstance(run, dict):
+        return "not a JSON object"
     for key in ("name", "track_summary", "events", "sentences"):
         if key not in run:
-            raise InputError(f"manifest lacks {key!r}", path=path)
-    return run
+            return f"no {key!r}"
+    if not isinstance(run["name"], str) or not run["name"]:
+        return "'name' is not a non-empty string"
+    for key in ("source", "fingerprint"):
+        if key in run and run[key] is not None and not isinstance(run[key], str):
+            return f"{key!r} is not a string"
+    seq = run.get("sequence", {})
+    if not isinstance(seq, dict) or any(k in seq and seq[k] is not None and not isinstance(seq[k], (int, float))
+                                        for k in ("length", "fps", "width", "height")):
+        return "'sequence' is not an object of numbers"
+    if not isinstance(run["track_summary"], list) or not all(
+            isinstance(t, dict) and all(_is_int(t.get(k)) for k in ("id", "first_frame", "last_frame", "boxes"))
+            for t in run["track_summary"]):
+        return "'track_summary' is not a list of tracks (integer id, first_frame, last_frame, boxes)"
+    if not isinstance(run["events"], list) or not all(
+            isinstance(e, dict) and isinstance(e.get("type"), str) and _is_int(e.get("frame"))
+            and _int_list(e.get("tracks")) for e in run["events"]):
+        return "'events' is not a list of events (type, integer frame, list of track ids)"
+    if not isinstance(run["sentences"], list) or not all(
+            isinstance(x, dict) and isinstance(x.get("sentence"), str) and _int_list(x.get("tracks", []))
+            and all(x.get(k) is None or _is_int(x.get(k)) for k in ("frame_start", "frame_end"))
+            and all(x.get(k) is None or isinstance(x.get(k), str) for k in ("subject", "verb", "adjective"))
+            for x in run["sentences"]):
+        return "'sentences' is not a list of sentences (text, track ids, integer frames)"
+    return None
+
+
+def source_fingerprint(seq) -> str:
+    """A fingerprint of a sequence's content (not its name or place): SHA-256 over the size and
+    the first and last MiB of a video, or over the names and sizes of an image folder's frames and
+    its first frame's bytes; cheap for any length."""
+    import hashlib
+
+    h = hashlib.sha256()
+    files = [seq.video] if seq.video is not None else list(seq.images)
+    for p in files:
+        h.update(f"{p.name}:{p.stat().st_size};".encode())
+    with open(files[0], "rb") as fh:
+        h.update(fh.read(1 << 20))
+        if seq.video is not None and files[0].stat().st_size > 2 << 20:
+            fh.seek(-(1 << 20), os.SEEK_END)
+            h.update(fh.read())
+    return h.hexdigest()[:16]
+
+
+def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> Path:
+    """``runs/NAME``, unless it holds the run of another source (another video called the same,
+    e.g. every day's ``cam1.mp4``): then ``runs/NAME-<fingerprint>``, so no run replaces another's."""
+    out = Path(root) / seq.name
+    try:
+        prev = json.loads((out / MANIFEST).read_text(encoding="utf-8")) if (out / MANIFEST).is_file() else None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        prev = None
+    same = prev is None or (prev.get("fingerprint") == fingerprint
+                            and prev.get("source") == str(Path(seq.path).resolve()))
+    return out if same else Path(root) / f"{seq.name}-{fingerprint[:8]}"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import html
 import os
+from contextlib import closing
 from pathlib import Path
 
 import cv2
@@ -99,11 +100,12 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())
     key_images, background_samples = {}, []
-    for fno, frame in seq.frames():
-        if fno in keys:
-            key_images[fno] = draw_boxes(frame.copy(), tracks[tracks[:, 0] == fno])
-        if fno in samples:
-            background_samples.append(cv2.resize(frame, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+    with closing(seq.frames()) as frames:
+        for fno, frame in frames:
+            if fno in keys:
+                key_images[fno] = draw_boxes(frame.copy(), tracks[tracks[:, 0] == fno])
+            if fno in samples:
+                background_samples.append(cv2.resize(frame, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
     if background_samples:  # the median of frames spread over time removes moving people
         bg = np.median(np.stack(background_samples), axis=0).astype(np.uint8)
         bg = cv2.resize(bg, (int(seq.width), int(seq.height)), interpolation=cv2.INTER_LINEAR)

@@ -8,32 +8,24 @@
 * :mod:`~artmotion.articulation.trajectory` — trajectory files and ``articulation fit``.
 """
 
-from artmotion.articulation.models import (
-    PlanarModel,
-    PrismaticModel,
-    RevoluteModel,
-    StaticModel,
-    fit_circle_2d,
-    fit_circle_joint,
-)
-from artmotion.articulation.online import OnlineEstimator, OnlineResult, estimate_online
-from artmotion.articulation.rigid import classify_motion, classify_points, classify_poses, factorize
-from artmotion.articulation.trajectory import fit_trajectory, read_trajectory
+from artmotion._lazy import lazy_attributes
 
-__all__ = [
-    "OnlineEstimator",
-    "OnlineResult",
-    "PlanarModel",
-    "PrismaticModel",
-    "RevoluteModel",
-    "StaticModel",
-    "classify_motion",
-    "classify_points",
-    "classify_poses",
-    "estimate_online",
-    "factorize",
-    "fit_circle_2d",
-    "fit_circle_joint",
-    "fit_trajectory",
-    "read_trajectory",
-]
+_WHERE = {
+    "PlanarModel": "models",
+    "PrismaticModel": "models",
+    "RevoluteModel": "models",
+    "StaticModel": "models",
+    "fit_circle_2d": "models",
+    "fit_circle_joint": "models",
+    "OnlineEstimator": "online",
+    "OnlineResult": "online",
+    "estimate_online": "online",
+    "classify_motion": "rigid",
+    "classify_points": "rigid",
+    "classify_poses": "rigid",
+    "factorize": "rigid",
+    "fit_trajectory": "trajectory",
+    "read_trajectory": "trajectory",
+}
+__all__ = sorted(_WHERE)
+__getattr__ = lazy_attributes(__name__, _WHERE)

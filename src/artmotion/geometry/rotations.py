@@ -3,7 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+
+def _rotation():
+    # scipy.spatial costs ~0.4 s to import: only when a rotation is asked for
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 from artmotion.errors import InputError
 
@@ -18,12 +24,12 @@ def quat_to_matrix(q, *, tol: float = 1e-3) -> np.ndarray:
     if np.any(~np.isfinite(norms)) or np.any(np.abs(norms - 1.0) > tol):
         bad = int(np.argmax(np.abs(np.nan_to_num(norms, nan=np.inf) - 1.0)))
         raise InputError(f"non-unit quaternion (norm {np.ravel(norms)[bad]:.4g} at row {bad + 1})")
-    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
+    return _rotation().from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
 
 
 def matrix_to_quat(R) -> np.ndarray:
     R = np.asarray(R, dtype=float)
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
+    return _rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
 
 
 def axis_angle_to_matrix(axis, angle) -> np.ndarray:
@@ -31,12 +37,12 @@ def axis_angle_to_matrix(axis, angle) -> np.ndarray:
     axis = np.asarray(axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
     angle = np.asarray(angle, dtype=float)
-    return Rotation.from_rotvec(axis * angle[..., None]).as_matrix()
+    return _rotation().from_rotvec(axis * angle[..., None]).as_matrix()
 
 
 def matrix_to_axis_angle(R) -> tuple[np.ndarray, float]:
     """Unit axis and angle in ``[0, pi]`` of a rotation matrix (axis ``[0, 0, 1]`` for identity)."""
-    rv = Rotation.from_matrix(np.asarray(R, dtype=float)).as_rotvec()
+    rv = _rotation().from_matrix(np.asarray(R, dtype=float)).as_rotvec()
     angle = float(np.linalg.norm(rv))
     axis = rv / angle if angle > 1e-12 else np.array([0.0, 0.0, 1.0])
     return axis, angle

@@ -4,12 +4,8 @@ Gaussian-process regression on HOG/LBP features (thesis Sec. 3.4) with a per-ang
 constant-velocity Kalman filter (Sec. 3.5). See docs/pose.md.
 """
 
-__all__ = ["PoseFilter", "PoseRegressor"]
+from artmotion._lazy import lazy_attributes
 
-
-def __getattr__(name):  # lazy: the root CLI imports artmotion.pose.cli without the numeric stack
-    if name in __all__:
-        from artmotion.pose import model
-
-        return getattr(model, name)
-    raise AttributeError(name)
+_WHERE = {"PoseFilter": "model", "PoseRegressor": "model"}
+__all__ = sorted(_WHERE)
+__getattr__ = lazy_attributes(__name__, _WHERE)

@@ -10,7 +10,6 @@ import time
 from pathlib import Path
 from typing import List, Optional, Sequence
 
-import numpy as np
 import typer
 
 from artmotion.errors import InputError
@@ -63,7 +62,7 @@ def train_cmd(
     t = time.perf_counter()
     reg.fit(imgs, Y, names)
     reg.save(model)
-    hyp = ", ".join(f"{n}: l={h.length:.3g} sn={np.sqrt(h.sn2) * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
+    hyp = ", ".join(f"{n}: l={h.length:.3g} sn={h.sn2 ** 0.5 * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
     typer.echo(f"trained {reg.gp_.kind} GP on {len(Y)} crops, {reg.gp_.n_outputs} angles, feature {feature} "
                f"({time.perf_counter() - t:.1f} s) -> {model}")
     typer.echo(f"  {hyp}")

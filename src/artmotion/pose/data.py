@@ -8,13 +8,12 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-import cv2
 import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_write
-
-IMAGE_EXTS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp"}
+from artmotion.io.media import IMAGE_EXTS
+from artmotion.io.media import read_image as _read_checked
 
 
 def list_images(folder: str | os.PathLike) -> list[Path]:
@@ -29,9 +28,8 @@ def list_images(folder: str | os.PathLike) -> list[Path]:
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None or img.size == 0:
-        raise InputError("unreadable image", path=path)
+    """A crop, checked (:func:`artmotion.io.media.read_image`) and at least 2 x 2 pixels."""
+    img = _read_checked(path)
     if img.shape[0] < 2 or img.shape[1] < 2:
         raise InputError(f"image too small ({img.shape[1]}x{img.shape[0]})", path=path)
     return img

@@ -28,7 +28,8 @@ from sklearn.model_selection import KFold
 from artmotion.errors import InputError
 from artmotion.io import atomic_write, save_figure
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
-from artmotion.language.grounding.features import audio_feature, read_image, render_shape, visual_features
+from artmotion.io.media import read_image
+from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse, estimate_linking
 
 #: Held-out colour–shape pairs, one round per line; every colour and shape stays in training.
@@ -219,8 +220,6 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
     # Fig 5.8: one utterance, the image generated from it and the retrieved neighbours
     ex = report.get("_example") or {}
     if ex and "images" in F:
-        import cv2
-
         fig, axes = plt.subplots(2, 9, figsize=(15, 3.8), squeeze=False)
         for r, model in enumerate(("compositional", "paired")):
             e = ex[model]
@@ -229,8 +228,7 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
             for c, (concept, idx) in enumerate((("color", e["neighbours_color"][:4]), ("shape", e["neighbours_shape"][:4]))):
                 for j, i in enumerate(idx):
                     ax = axes[r][1 + 4 * c + j]
-                    img = cv2.imread(F["images"][i])
-                    ax.imshow(img[:, :, ::-1] if img is not None else np.zeros((8, 8, 3)))
+                    ax.imshow(read_image(F["images"][i])[:, :, ::-1])
                     ax.set_title(f"{concept} #{j + 1}: {F['colors'][i]} {F['shapes'][i]}", fontsize=7)
             for ax in axes[r]:
                 ax.axis("off")

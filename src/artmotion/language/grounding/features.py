@@ -41,17 +41,6 @@ COLOR_DIM = 3
 # visual
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """BGR uint8 image; :class:`InputError` if missing or not an image."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such file", path=path)
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None or img.size == 0:
-        raise InputError("not a readable image", path=path)
-    return img
-
-
 def segment_shape(img_bgr: np.ndarray, *, min_area: float = 0.002, where: str | None = None) -> np.ndarray:
     """Mask (uint8 0/1) of the largest saturated region; :class:`InputError` if there is none."""
     hsv = cv2.cvtColor(img_bgr, cv2.COLOR_BGR2HSV)

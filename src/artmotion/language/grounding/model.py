@@ -6,12 +6,8 @@ import os
 
 import numpy as np
 
-from artmotion.language.grounding.features import (
-    audio_feature,
-    read_image,
-    render_shape,
-    visual_features,
-)
+from artmotion.io.media import read_image
+from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse
 
 

@@ -43,8 +43,15 @@ demo: install
 test: install
 	$(PY) -m pytest -q
 
-bench: install
-	$(PIP) install -q --no-deps trackers==2.6.1 supervision==0.31.2 'pydeprecate>=0.9,<0.14' defusedxml==0.7.1
+# The peer trackers live in their own environment: `trackers` pulls opencv-python, which would
+# replace the contrib cv2 (HOG lives only there) in ours.
+PEERS_VENV := .venv-peers
+$(PEERS_VENV)/.stamp: pyproject.toml
+	$(PYTHON) -m venv $(PEERS_VENV)
+	$(PEERS_VENV)/bin/python -m pip install -q trackers==2.6.1 supervision==0.31.2
+	touch $@
+
+bench: install $(PEERS_VENV)/.stamp
 	$(PY) -c "import cv2; cv2.HOGDescriptor()"
 	$(PY) benchmarks/tracking.py
 	$(PY) benchmarks/pose.py
@@ -53,4 +60,4 @@ bench: install
 	$(PY) benchmarks/app.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(PEERS_VENV) out .pytest_cache

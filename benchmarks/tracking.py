@@ -1,24 +1,30 @@
 #!/usr/bin/env python
-"""Tracking benchmark: artmotion against SORT, ByteTrack, OC-SORT and BoT-SORT on MOT15 sequences.
+"""Tracking benchmark: artmotion against SORT, ByteTrack, OC-SORT and BoT-SORT, on every sequence.
 
-Every tracker gets the SAME published detections (``<seq>/det/det.txt``) in the same run and is
-scored with :func:`artmotion.tracking.metrics.evaluate` (MOT15 conventions, agrees with TrackEval).
-The peers come from the PyPI package ``trackers`` (the ``bench`` extra); they are fed our
-detection boxes as ``supervision.Detections`` (no detector model). BoT-SORT in ``trackers`` has no
-ReID branch: it runs motion-only, with its camera-motion compensation on the decoded frames.
+Every tracker gets the SAME detections of a sequence in the same run and is scored by
+:func:`artmotion.tracking.metrics.evaluate` (MOTChallenge rules: MOT15 for 10-column ground truth,
+MOT17 — pedestrians only, distractors removed — for MOT16-09; both agree with TrackEval, see
+tests/tracking/test_metrics.py). The peers come from the PyPI package ``trackers`` and run in their
+own environment (``.venv-peers``, made by ``make bench``; ``trackers`` pulls ``opencv-python``,
+which would replace the contrib ``cv2``), through ``benchmarks/_peer_worker.py``. BoT-SORT in
+``trackers`` has no ReID model: it runs motion-only, with its camera-motion compensation.
 
-Each (method, sequence) runs in a fresh worker process so that timings and memory are isolated:
-``fps`` is frames / wall time of the run (including frame decoding for the methods that read the
-images: artmotion and BoT-SORT); ``peak MiB`` is the worker's peak resident memory above its
-resident memory just before the run (``resource.getrusage`` max RSS). ``decode`` is the time of
-merely decoding the frames with OpenCV; ``track/decode`` is artmotion's time over it.
+Tables:
+
+* **published detections** (``det/det.txt``, Faster R-CNN): every tracker on every sequence, the
+  mean over sequences, and the best peer per column;
+* **weak detections** (``det_acf.txt``, ``det_dpm.txt`` where the sequence has them; DPM scores are
+  not in [0, 1] and are replaced by their mid-rank, for every tracker);
+* **speed**: the whole ``artmotion track`` command (a fresh process, start-up included) against
+  the time of merely decoding the sequence's frames in one process (the decode floor); artmotion's
+  peak memory.
 
 Usage::
 
-    python benchmarks/tracking.py [DATA_ROOT] [--out docs/benchmarks.md] [--methods artmotion,sort,...]
+    python benchmarks/tracking.py [--data ROOT ...] [--methods artmotion,sort,...] [--out docs/benchmarks.md]
 
-``DATA_ROOT`` defaults to ``../shared/data/mot15`` relative to the repository root; every
-sub-folder with ``det/det.txt`` and ``gt/gt.txt`` is a sequence.
+It rewrites docs/benchmarks.md and the block between ``<!-- tracking-benchmark -->`` markers in
+docs/tracking.md. Timings are only meaningful on an otherwise idle machine.
 """
 
 from __future__ import annotations
@@ -27,9 +33,10 @@ import argparse
 import json
 import os
 import platform
-import resource
+import re
 import subprocess
 import sys
+import tempfile
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -37,262 +44,258 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = ROOT.parent / "shared" / "data" / "mot15"
-PEERS = {
-    "sort": "SORTTracker",
-    "bytetrack": "ByteTrackTracker",
-    "ocsort": "OCSORTTracker",
-    "botsort": "BoTSORTTracker",
-}
+SHARED = ROOT.parent / "shared" / "data"
+PEERS_PY = ROOT / ".venv-peers" / "bin" / "python"
+PEERS = ["sort", "bytetrack", "ocsort", "botsort"]
 LABELS = {"artmotion": "artmotion", "sort": "SORT", "bytetrack": "ByteTrack", "ocsort": "OC-SORT",
           "botsort": "BoT-SORT (motion only)"}
-METHODS = ["artmotion", *PEERS]
+KEYS = ("MOTA", "IDF1", "HOTA")
 
 
-# --------------------------------------------------------------------------- worker side
-
-
-def _rss_bytes() -> int:
-    """Current resident memory of this process."""
-    try:
-        with open("/proc/self/statm") as fh:
-            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except OSError:
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
-def _peak_bytes() -> int:
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak if sys.platform == "darwin" else peak * 1024
-
-
-def _run_decode(seq_dir: Path) -> dict:
-    from artmotion.tracking import open_sequence
-
-    seq = open_sequence(seq_dir)
-    base = _rss_bytes()
-    times = []
-    for _ in range(2):  # the first pass also warms the file cache; report the faster
-        t0 = time.perf_counter()
-        n = sum(1 for _ in seq.frames())
-        times.append(time.perf_counter() - t0)
-    return {"frames": n, "seconds": min(times), "peak_bytes": _peak_bytes() - base}
-
-
-def _run_artmotion(seq_dir: Path) -> dict:
-    from artmotion.tracking import open_sequence, track
-
-    length = open_sequence(seq_dir).length
-    base = _rss_bytes()
-    t0 = time.perf_counter()
-    result = track(seq_dir, det=seq_dir / "det" / "det.txt")
-    dt = time.perf_counter() - t0
-    rows = np.asarray(result.tracks, float).reshape(-1, np.shape(result.tracks)[-1] if np.size(result.tracks) else 10)
-    return {"frames": length, "seconds": dt, "peak_bytes": _peak_bytes() - base, "rows": rows[:, :7].tolist()}
-
-
-def _run_peer(name: str, seq_dir: Path) -> dict:
-    import supervision as sv
-    import trackers
-
-    from artmotion.geometry import xywh_to_xyxy
-    from artmotion.io import read_mot
-    from artmotion.tracking import open_sequence
-
-    seq = open_sequence(seq_dir)
-    det = read_mot(seq_dir / "det" / "det.txt")
-    by_frame = {int(f): det[det[:, 0] == f] for f in np.unique(det[:, 0])}
-    empty = np.zeros((0, 10))
-    tracker = getattr(trackers, PEERS[name])(frame_rate=seq.fps)
-    needs_frames = name == "botsort"  # camera-motion compensation works on the images
+def find_sequences(roots) -> list[Path]:
     out = []
-
-    def step(f: int, image) -> None:
-        d = by_frame.get(f, empty)
-        xyxy = xywh_to_xyxy(d[:, 2:6]).astype(np.float32)
-        dets = sv.Detections(xyxy=xyxy.reshape(-1, 4), confidence=d[:, 6].astype(np.float32),
-                             class_id=np.zeros(len(d), dtype=int))
-        tracked = tracker.update(dets, frame=image) if needs_frames else tracker.update(dets)
-        if len(tracked) == 0 or tracked.tracker_id is None:
-            return
-        keep = tracked.tracker_id >= 0  # -1: not (yet) a confirmed track
-        for (x1, y1, x2, y2), tid, c in zip(tracked.xyxy[keep], tracked.tracker_id[keep],
-                                            (tracked.confidence[keep] if tracked.confidence is not None
-                                             else np.ones(int(keep.sum())))):
-            out.append([f, int(tid) + 1, float(x1), float(y1), float(x2 - x1), float(y2 - y1), float(c)])
-
-    base = _rss_bytes()
-    t0 = time.perf_counter()
-    if needs_frames:
-        for f, image in seq.frames():
-            step(f, image)
-    else:
-        for f in range(1, seq.length + 1):
-            step(f, None)
-    dt = time.perf_counter() - t0
-    return {"frames": seq.length, "seconds": dt, "peak_bytes": _peak_bytes() - base, "rows": out}
+    for root in roots:
+        root = Path(root)
+        if root.is_dir():
+            out += sorted(p for p in root.iterdir() if (p / "gt" / "gt.txt").is_file() and (p / "det").is_dir())
+    return out
 
 
-def _worker(method: str, seq_dir: str) -> None:
-    import warnings
+_DECODE = """
+import sys, time, cv2
+from pathlib import Path
+seq = Path(sys.argv[1])
+n = 0
+if (seq / "img1").is_dir():
+    for p in sorted((seq / "img1").iterdir()):
+        n += cv2.imread(str(p)) is not None
+else:
+    cap = cv2.VideoCapture(str(next(p for p in sorted(seq.iterdir()) if p.suffix.lower() in (".mp4", ".avi"))))
+    while cap.read()[0]:
+        n += 1
+print(n)
+"""
 
-    warnings.filterwarnings("ignore")
-    seq_dir = Path(seq_dir)
-    if method == "decode":
-        res = _run_decode(seq_dir)
-    elif method == "artmotion":
-        res = _run_artmotion(seq_dir)
-    else:
-        res = _run_peer(method, seq_dir)
-    sys.stdout.write("\n@@RESULT@@" + json.dumps(res) + "\n")
+
+def _best_wall(cmd: list[str], runs: int = 3, env=None) -> tuple[float, str, int]:
+    """Best wall time of ``runs`` fresh processes (start-up included), the last one's stdout and
+    the largest peak RSS (bytes) of one of them (``os.wait4`` reports each child's own)."""
+    best, out, peak = float("inf"), "", 0
+    for _ in range(runs):
+        with tempfile.TemporaryFile() as fout, tempfile.TemporaryFile() as ferr:
+            t0 = time.perf_counter()
+            proc = subprocess.Popen(cmd, stdout=fout, stderr=ferr, env=env)
+            _, status, usage = os.wait4(proc.pid, 0)
+            best = min(best, time.perf_counter() - t0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            fout.seek(0)
+            ferr.seek(0)
+            out, err = fout.read().decode(), ferr.read().decode()
+        if proc.returncode != 0:
+            raise RuntimeError((err or out).strip().splitlines()[-1] if (err or out).strip() else f"exit {proc.returncode}")
+        peak = max(peak, usage.ru_maxrss * 1024)
+    return best, out, peak
 
 
-# --------------------------------------------------------------------------- driver side
+def decode_floor(seq: Path) -> tuple[int, float]:
+    """A fresh Python process that imports OpenCV and decodes every frame of ``seq`` at full size
+    (``cv2.imread`` / ``VideoCapture.read``): frames and best wall time of three runs."""
+    seconds, out, _ = _best_wall([sys.executable, "-c", _DECODE, str(seq)])
+    return int(out.split()[0]), seconds
 
 
-def _spawn(method: str, seq_dir: Path, timeout: float) -> dict:
-    cmd = [sys.executable, os.fspath(Path(__file__).resolve()), "--worker", method, os.fspath(seq_dir)]
+def run_artmotion(seq: Path, det: Path, out: Path, runs: int = 3) -> dict:
+    """``artmotion track`` in a fresh process: wall time with start-up (best of ``runs``), peak memory."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    cmd = [sys.executable, "-m", "artmotion", "track", str(seq), "--det", str(det), "--out", str(out), "--no-progress"]
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    except subprocess.TimeoutExpired:
-        return {"error": f"timed out after {timeout:g} s"}
-    marker = proc.stdout.rfind("@@RESULT@@")
-    if proc.returncode != 0 or marker < 0:
-        tail = (proc.stderr or proc.stdout).strip().splitlines()
-        return {"error": tail[-1] if tail else f"exit status {proc.returncode}"}
-    return json.loads(proc.stdout[marker + len("@@RESULT@@"):].strip().splitlines()[0])
+        seconds, _, peak = _best_wall(cmd, runs=runs, env=env)
+    except RuntimeError as exc:
+        return {"error": str(exc)}
+    return {"seconds": seconds, "peak_bytes": peak}
 
 
-def _fmt_pct(v) -> str:
-    return f"{100 * v:.1f}"
+def run_peer(name: str, seq: Path, det: Path, out: Path) -> dict:
+    if not PEERS_PY.exists():
+        return {"error": "peers not installed (make bench creates .venv-peers)"}
+    proc = subprocess.run([str(PEERS_PY), str(ROOT / "benchmarks" / "_peer_worker.py"), name, str(seq), str(det),
+                           str(out)], capture_output=True, text=True)
+    if proc.returncode != 0:
+        return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1]}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def find_sequences(data: Path) -> list[Path]:
-    return sorted(p for p in data.iterdir()
-                  if p.is_dir() and (p / "det" / "det.txt").is_file() and (p / "gt" / "gt.txt").is_file())
+def score_table(results: dict, seqs: list[str], methods: list[str]) -> tuple[str, dict]:
+    """Markdown table of MOTA/IDF1/HOTA (%), IDS/FP/FN per sequence and method, with the mean over
+    sequences and the best peer per column; returns it and the per-sequence verdicts."""
+    lines = ["| sequence | method | MOTA | IDF1 | HOTA | IDS | FP | FN |", "|---|---|---:|---:|---:|---:|---:|---:|"]
+    verdict = {}
+    for s in seqs:
+        best = {k: max((results[(m, s)][k] for m in methods if m != "artmotion" and (m, s) in results), default=None)
+                for k in KEYS}
+        for m in methods:
+            r = results.get((m, s))
+            if r is None:
+                continue
+            cells = []
+            for k in KEYS:
+                v = f"{100 * r[k]:.1f}"
+                cells.append(f"**{v}**" if m == "artmotion" and best[k] is not None and r[k] >= best[k] else v)
+            lines.append(f"| {s} | {LABELS[m]} | {' | '.join(cells)} | {r['IDS']} | {r['FP']} | {r['FN']} |")
+        if best["MOTA"] is not None and ("artmotion", s) in results:
+            lines.append(f"| {s} | *best peer* | {' | '.join(f'{100 * best[k]:.1f}' for k in KEYS)} | | | |")
+            verdict[s] = all(results[("artmotion", s)][k] >= best[k] for k in KEYS)
+    means = {}
+    for m in methods:
+        if all((m, s) in results for s in seqs):
+            means[m] = {k: float(np.mean([results[(m, s)][k] for s in seqs])) for k in KEYS}
+            lines.append(f"| **mean** | {LABELS[m]} | {' | '.join(f'{100 * means[m][k]:.1f}' for k in KEYS)} | | | |")
+    peers = [m for m in means if m != "artmotion"]
+    if peers:
+        best_mean = {k: max(means[m][k] for m in peers) for k in KEYS}
+        lines.append(f"| **mean** | *best peer per column* | {' | '.join(f'{100 * best_mean[k]:.1f}' for k in KEYS)} | | | |")
+        verdict["_best_mean"] = best_mean
+    verdict["_means"] = means
+    return "\n".join(lines), verdict
+
+
+def replace_block(path: Path, name: str, text: str) -> None:
+    """Replace the text between ``<!-- name -->`` and ``<!-- /name -->`` in ``path``."""
+    from artmotion.io import atomic_write
+
+    doc = path.read_text(encoding="utf-8")
+    pat = re.compile(rf"(<!-- {name} -->\n).*?(<!-- /{name} -->)", re.S)
+    if not pat.search(doc):
+        raise SystemExit(f"benchmarks/tracking.py: error: {path}: no <!-- {name} --> block")
+    with atomic_write(path) as fh:
+        fh.write(pat.sub(lambda m: m.group(1) + text.strip() + "\n" + m.group(2), doc))
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data", nargs="?", default=os.fspath(DEFAULT_DATA), help="folder of MOT15 sequences")
-    ap.add_argument("--out", default=os.fspath(ROOT / "docs" / "benchmarks.md"), help="markdown report ('-' for none)")
-    ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated subset of " + ",".join(METHODS))
-    ap.add_argument("--timeout", type=float, default=1800, help="seconds allowed per method and sequence")
-    ap.add_argument("--worker", nargs=2, metavar=("METHOD", "SEQ"), help=argparse.SUPPRESS)
+    ap.add_argument("--data", nargs="*", default=[str(SHARED / "mot15"), str(SHARED / "mot16")],
+                    help="folders of MOTChallenge sequences")
+    ap.add_argument("--methods", default=",".join(["artmotion", *PEERS]))
+    ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks.md"), help="markdown report ('-': none)")
+    ap.add_argument("--no-speed", action="store_true", help="skip the decode-floor measurement")
+    ap.add_argument("--no-loo", action="store_true", help="skip the leave-one-out search and the ablation")
     args = ap.parse_args(argv)
-    if args.worker:
-        _worker(*args.worker)
-        return 0
+    sys.path.insert(0, str(ROOT / "src"))
+    from artmotion.io import atomic_write
+    from artmotion.tracking.metrics import evaluate
 
-    sys.path.insert(0, os.fspath(ROOT / "src"))
-    from artmotion.io import atomic_write, read_mot
-    from artmotion.tracking.metrics import evaluate, evaluate_sequences
-
-    data = Path(args.data)
-    if not data.is_dir():
-        print(f"benchmarks/tracking.py: error: no such folder: {data}", file=sys.stderr)
-        return 2
-    seqs = find_sequences(data)
+    seqs = find_sequences(args.data)
     if not seqs:
-        print(f"benchmarks/tracking.py: error: no sequence with det/det.txt and gt/gt.txt in {data}", file=sys.stderr)
+        print("benchmarks/tracking.py: error: no sequences found", file=sys.stderr)
         return 2
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = sorted(set(methods) - set(METHODS))
-    if unknown:
-        print(f"benchmarks/tracking.py: error: unknown method(s) {', '.join(unknown)}", file=sys.stderr)
-        return 2
-
-    rows = []  # (method, seq, scores or None, run)
-    decode = {}
-    per_method_pairs = {m: [] for m in methods}
-    for seq in seqs:
-        gt = read_mot(seq / "gt" / "gt.txt")
-        decode[seq.name] = _spawn("decode", seq, args.timeout)
-        print(f"[{seq.name}] decode: {decode[seq.name].get('seconds', float('nan')):.2f} s", file=sys.stderr)
-        for m in methods:
-            run = _spawn(m, seq, args.timeout)
-            scores = None
-            if "error" not in run:
-                res = np.asarray(run["rows"], float).reshape(-1, 7)
-                scores = evaluate(gt, res)
-                per_method_pairs[m].append((gt, res))
-                print(f"[{seq.name}] {m}: MOTA {scores['MOTA']:.3f} IDF1 {scores['IDF1']:.3f} "
-                      f"HOTA {scores['HOTA']:.3f} in {run['seconds']:.2f} s", file=sys.stderr)
-            else:
-                print(f"[{seq.name}] {m}: FAILED: {run['error']}", file=sys.stderr)
-            rows.append((m, seq.name, scores, run))
-
-    head = "| sequence | method | MOTA | IDF1 | HOTA | IDS | FP | FN | fps | peak MiB |"
-    sep = "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-    lines = [head, sep]
-    for m, name, s, run in rows:
-        if s is None:
-            lines.append(f"| {name} | {LABELS[m]} | failed: {run['error'][:80]} | | | | | | | |")
-            continue
-        fps = run["frames"] / run["seconds"] if run["seconds"] > 0 else float("inf")
-        lines.append(f"| {name} | {LABELS[m]} | {_fmt_pct(s['MOTA'])} | {_fmt_pct(s['IDF1'])} | {_fmt_pct(s['HOTA'])} "
-                     f"| {s['IDS']} | {s['FP']} | {s['FN']} | {fps:.1f} | {run['peak_bytes'] / 2**20:.1f} |")
-    if len(seqs) > 1:
-        for m in methods:
-            pairs = per_method_pairs[m]
-            if len(pairs) != len(seqs):
+    methods = [m for m in args.methods.split(",") if m]
+    results: dict = {}
+    weak: dict = {}
+    runs: dict = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for seq in seqs:
+            gt = seq / "gt" / "gt.txt"
+            for det in sorted(seq.glob("det/det*.txt")):
+                kind = det.stem.replace("det_", "") if det.stem != "det" else "published"
+                for m in methods:
+                    out = Path(tmp) / f"{seq.name}-{kind}-{m}.txt"
+                    if m == "artmotion":
+                        run = run_artmotion(seq, det, out, runs=3 if kind == "published" and not args.no_speed else 1)
+                    else:
+                        run = run_peer(m, seq, det, out)
+                    if "error" in run:
+                        print(f"[{seq.name} {kind}] {m}: FAILED: {run['error']}", file=sys.stderr)
+                        continue
+                    s = evaluate(gt, np.loadtxt(out, delimiter=",", ndmin=2) if out.stat().st_size else np.zeros((0, 7)))
+                    (results if kind == "published" else weak)[(m, seq.name if kind == "published" else f"{seq.name} ({kind})")] = s
+                    if kind == "published":
+                        runs[(m, seq.name)] = run
+                    print(f"[{seq.name} {kind}] {m}: MOTA {s['MOTA']:.3f} IDF1 {s['IDF1']:.3f} HOTA {s['HOTA']:.3f}",
+                          file=sys.stderr)
+    names = [s.name for s in seqs]
+    table, verdict = score_table(results, names, methods)
+    weak_names = sorted({s for _, s in weak})
+    weak_table, _ = score_table(weak, weak_names, methods) if weak else ("(no weak detections found)", {})
+    speed = ["| sequence | frames | size | decode floor s | artmotion track s | ratio | frames/s | peak MiB |",
+             "|---|---:|---|---:|---:|---:|---:|---:|"]
+    if not args.no_speed:
+        for seq in seqs:
+            run = runs.get(("artmotion", seq.name))
+            if run is None:
                 continue
-            s = evaluate_sequences(pairs)
-            runs = [r for mm, _, sc, r in rows if mm == m and sc is not None]
-            fps = sum(r["frames"] for r in runs) / max(1e-9, sum(r["seconds"] for r in runs))
-            peak = max(r["peak_bytes"] for r in runs) / 2**20
-            lines.append(f"| **all** | {LABELS[m]} | {_fmt_pct(s['MOTA'])} | {_fmt_pct(s['IDF1'])} | "
-                         f"{_fmt_pct(s['HOTA'])} | {s['IDS']} | {s['FP']} | {s['FN']} | {fps:.1f} | {peak:.1f} |")
-    table = "\n".join(lines)
-
-    speed = ["| sequence | frames | decode s | decode fps | artmotion track s | track/decode |",
-             "|---|---:|---:|---:|---:|---:|"]
-    for seq in seqs:
-        d = decode[seq.name]
-        if "error" in d:
-            speed.append(f"| {seq.name} | | decode failed: {d['error'][:80]} | | | |")
-            continue
-        am = next((r for mm, name, sc, r in rows if mm == "artmotion" and name == seq.name and "error" not in r), None)
-        t = f"{am['seconds']:.2f}" if am else "n/a"
-        ratio = f"{am['seconds'] / d['seconds']:.1f}x" if am and d["seconds"] > 0 else "n/a"
-        speed.append(f"| {seq.name} | {d['frames']} | {d['seconds']:.2f} | {d['frames'] / d['seconds']:.0f} | {t} | {ratio} |")
-    speed_table = "\n".join(speed)
-
-    try:
-        from importlib.metadata import version
-
-        peers_version = version("trackers")
-    except Exception:  # noqa: BLE001 - only for the report
-        peers_version = "not installed"
+            n, dec = decode_floor(seq)
+            ini = (seq / "seqinfo.ini").read_text()
+            size = "x".join(re.search(rf"{k}\s*=\s*(\d+)", ini).group(1) for k in ("imWidth", "imHeight"))
+            speed.append(f"| {seq.name} | {n} | {size} | {dec:.2f} | {run['seconds']:.2f} | {run['seconds'] / dec:.2f}x | "
+                         f"{n / run['seconds']:.0f} | {run['peak_bytes'] / 2 ** 20:.0f} |")
+    wins = [s for s in names if verdict.get(s)]
+    means = verdict.get("_means", {})
+    summary = ""
+    if "artmotion" in means and "_best_mean" in verdict:
+        a, b = means["artmotion"], verdict["_best_mean"]
+        summary = (f"artmotion is at least the best peer in MOTA, IDF1 and HOTA on {len(wins)} of {len(names)} "
+                   f"sequences ({', '.join(wins) or 'none'}); mean MOTA/IDF1/HOTA {100 * a['MOTA']:.1f} / "
+                   f"{100 * a['IDF1']:.1f} / {100 * a['HOTA']:.1f} against the best peer's "
+                   f"{100 * b['MOTA']:.1f} / {100 * b['IDF1']:.1f} / {100 * b['HOTA']:.1f} "
+                   f"(HOTA {100 * (a['HOTA'] - b['HOTA']):+.1f} points).")
+    peers_version = "not installed"
+    if PEERS_PY.exists():
+        peers_version = subprocess.run([str(PEERS_PY), "-c", "import trackers; print(trackers.__version__)"],
+                                       capture_output=True, text=True).stdout.strip() or peers_version
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    load = os.getloadavg()[0]
     report = f"""# Tracking benchmark
 
 Generated by `python benchmarks/tracking.py` on {when} ({platform.machine()}, {os.cpu_count()} CPUs,
-Python {platform.python_version()}, trackers {peers_version}). Data: {', '.join(s.name for s in seqs)}
-(MOT15 train, published detections `det/det.txt` for every method).
+load average {load:.1f} at the end, Python {platform.python_version()}, trackers {peers_version}).
+Every method gets the same detections; scores by `artmotion.tracking.metrics.evaluate` (MOT15 rules
+for MOT15, MOT17 rules for MOT16-09), in %; **bold**: artmotion at least the best peer.
+Peers run with their default parameters and the sequence's frame rate in their own environment.
 
-Scores from `artmotion.tracking.metrics.evaluate` (MOT15 conventions, cross-checked against TrackEval;
-see docs/metrics.md), in %; IDS/FP/FN are counts. Peers run with their default parameters and the
-sequence's frame rate; they get our detection boxes and confidences as `supervision.Detections`.
-BoT-SORT in `trackers` has no ReID model: it runs motion-only with camera-motion compensation on the
-frames. `fps` = frames / wall time of one run in a fresh process (artmotion and BoT-SORT include
-decoding the frames); `peak MiB` = peak resident memory above the level just before the run.
-**all** rows score the sequences together (counts summed, as TrackEval's combined result).
+{summary}
+
+## Published detections (Faster R-CNN, `det/det.txt`)
 
 {table}
 
-## Speed: decoding alone vs artmotion
+## Weak detections (ACF, DPM; robustness)
 
-Time to merely decode every frame with OpenCV, against the whole `artmotion.tracking.track` run.
+{weak_table}
 
-{speed_table}
+## Speed
+
+The whole `artmotion track SEQ --det DET --out FILE` in a fresh process (Python start-up and
+imports included) against the decode floor: a fresh Python process that imports OpenCV and decodes
+every frame at full size (`cv2.imread` / `VideoCapture.read`). Best of three runs each.
+
+{chr(10).join(speed)}
 """
     print(report)
     if args.out != "-":
         with atomic_write(args.out) as fh:
             fh.write(report)
-        print(f"written: {args.out}", file=sys.stderr)
+        block = (f"{summary}\n\n{table}\n\nWeak detections:\n\n{weak_table}\n\nSpeed (load average {load:.1f}):\n\n"
+                 + "\n".join(speed))
+        replace_block(ROOT / "docs" / "tracking.md", "tracking-benchmark", block)
+        print(f"written: {args.out} and docs/tracking.md", file=sys.stderr)
+    if not args.no_loo:
+        loo_and_ablation(write=args.out != "-")
     return 0
+
+
+def loo_and_ablation(write: bool) -> None:
+    """The leave-one-out choice of settings and the ablation (benchmarks/tracking_loo.py; scores
+    are cached per version of the tracker's code, so a re-run only computes what changed)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import tracking_loo
+
+    results = tracking_loo.run()
+    loo = tracking_loo.held_out_table({k: v for k, v in results.items() if k in tracking_loo.SEQUENCES})
+    print(loo)
+    print(results["ablation"])
+    if write:
+        replace_block(ROOT / "docs" / "tracking.md", "tracking-loo", loo)
+        replace_block(ROOT / "docs" / "tracking.md", "tracking-ablation", results["ablation"])
 
 
 if __name__ == "__main__":

@@ -14,14 +14,14 @@ from scipy.optimize import linear_sum_assignment
 from artmotion.geometry import iou_matrix
 
 
-def _write(path: Path, rows: np.ndarray) -> None:
+def _write(path: Path, rows: np.ndarray, columns: int = 10) -> None:
     # Keep the row order (it decides Hungarian tie-breaks) and full precision.
     rows = np.asarray(rows, float).reshape(-1, np.shape(rows)[-1] if np.size(rows) else 10)
     if rows.shape[1] < 10:
         rows = np.hstack([rows, -np.ones((len(rows), 10 - rows.shape[1]))])
     with open(path, "w") as fh:
         for r in rows:
-            fh.write("%d,%d,%s\n" % (r[0], r[1], ",".join(repr(float(v)) for v in r[2:10])))
+            fh.write("%d,%d,%s\n" % (r[0], r[1], ",".join(repr(float(v)) for v in r[2:columns])))
 
 
 def _flat(r: dict) -> dict:
@@ -32,27 +32,31 @@ def _flat(r: dict) -> dict:
     return flat
 
 
-def _run_trackeval(seqs: dict, threshold: float) -> dict:
-    """TrackEval (BENCHMARK='MOT15') on ``{name: (gt, res)}``; its results for the one tracker."""
+def _run_trackeval(seqs: dict, threshold: float, benchmark: str = "MOT15") -> dict:
+    """TrackEval (``BENCHMARK=benchmark``) on ``{name: (gt, res)}``; its results for the one tracker.
+
+    For MOT17 the ground truth is written with its 9 columns (consider, class, visibility)."""
     import trackeval
 
+    split = f"{benchmark}-train"
+    gt_cols = 9 if benchmark != "MOT15" else 10
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         info = {}
-        (tmp / "trk" / "MOT15-train" / "T" / "data").mkdir(parents=True)
+        (tmp / "trk" / split / "T" / "data").mkdir(parents=True)
         for seq, (gt, res) in seqs.items():
             gt = np.asarray(gt, float)
             res = np.asarray(res, float).copy()
             if res.shape[1] > 7:  # TrackEval reads column 7 of results as a class (MOT15 gt has world X there)
                 res[:, 7:] = -1
             info[seq] = int(max(gt[:, 0].max() if len(gt) else 1, res[:, 0].max() if len(res) else 1))
-            (tmp / "gt" / "MOT15-train" / seq / "gt").mkdir(parents=True)
-            _write(tmp / "gt" / "MOT15-train" / seq / "gt" / "gt.txt", gt)
-            _write(tmp / "trk" / "MOT15-train" / "T" / "data" / f"{seq}.txt", res)
+            (tmp / "gt" / split / seq / "gt").mkdir(parents=True)
+            _write(tmp / "gt" / split / seq / "gt" / "gt.txt", gt, gt_cols)
+            _write(tmp / "trk" / split / "T" / "data" / f"{seq}.txt", res)
         ev_cfg = dict(trackeval.Evaluator.get_default_eval_config())
         ev_cfg.update(USE_PARALLEL=False, PRINT_RESULTS=False, PRINT_CONFIG=False, TIME_PROGRESS=False,
                       OUTPUT_SUMMARY=False, OUTPUT_DETAILED=False, PLOT_CURVES=False, LOG_ON_ERROR=None)
-        ds_cfg = dict(GT_FOLDER=str(tmp / "gt"), TRACKERS_FOLDER=str(tmp / "trk"), BENCHMARK="MOT15",
+        ds_cfg = dict(GT_FOLDER=str(tmp / "gt"), TRACKERS_FOLDER=str(tmp / "trk"), BENCHMARK=benchmark,
                       SPLIT_TO_EVAL="train", SEQ_INFO=info, TRACKERS_TO_EVAL=["T"], PRINT_CONFIG=False)
         metric_cfg = {"THRESHOLD": threshold, "PRINT_CONFIG": False}
         with contextlib.redirect_stdout(io.StringIO()):
@@ -63,9 +67,9 @@ def _run_trackeval(seqs: dict, threshold: float) -> dict:
     return out["MotChallenge2DBox"]["T"]
 
 
-def trackeval_scores(gt: np.ndarray, res: np.ndarray, threshold: float = 0.5) -> dict:
-    """Run TrackEval's full MOT15 pipeline on one sequence; flat dict of its summary values."""
-    return _flat(_run_trackeval({"SEQ": (gt, res)}, threshold)["SEQ"]["pedestrian"])
+def trackeval_scores(gt: np.ndarray, res: np.ndarray, threshold: float = 0.5, benchmark: str = "MOT15") -> dict:
+    """Run TrackEval's full MotChallenge2DBox pipeline on one sequence; flat dict of its summary values."""
+    return _flat(_run_trackeval({"SEQ": (gt, res)}, threshold, benchmark)["SEQ"]["pedestrian"])
 
 
 def trackeval_combined(pairs: list, threshold: float = 0.5) -> dict:

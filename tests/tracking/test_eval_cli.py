@@ -46,7 +46,8 @@ def test_json_matches_api(run_cli, files):
     assert code == 0
     got = json.loads(out)
     want = evaluate(gt, res, iou_threshold=0.6)
-    assert set(got) == set(want)
+    assert set(got) == set(want) | {"rules"}
+    assert got["rules"] == "mot15"
     for k in ("MOTA", "MOTP", "IDF1", "HOTA", "IDS", "FP", "FN", "MT", "PT", "ML", "FM"):
         assert got[k] == pytest.approx(want[k])
     assert got["IDS"] == 1 and got["FN"] == 1

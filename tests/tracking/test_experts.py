@@ -83,6 +83,32 @@ def test_blob_expert_finds_the_foreground_blob(blob_video):
     assert np.median(err) < 2.0
 
 
+def test_background_subtraction_is_silent_while_the_camera_moves():
+    """A moving camera moves the whole background: the background model would see everything as
+    foreground. While the tracker says the camera moves there is no foreground and the model is
+    learnt afresh afterwards."""
+    frames, truth = moving_blob(n=40, v=V)
+    shared: dict = {}
+    for k in range(30):
+        foreground(Frame(-k, background(), None, scale=1.0, shared=shared))
+    panned = [np.roll(f, 12 * k, axis=1) for k, f in enumerate(frames[:10])]
+    shared["camera_moving"] = True
+    masks = [foreground(Frame(k, img, None, scale=1.0, shared=shared)) for k, img in enumerate(panned)]
+    assert all(m.max() == 0 for m in masks) and "bg" not in shared
+    ent = Entity(box=truth[5].copy())
+    f5 = Frame(5, panned[5], None, scale=1.0, shared=shared)
+    assert BlobExpert().propose(f5, None, ent) is None
+    # the camera is still again: a new model learns the new view and finds the blob
+    shared["camera_moving"] = False
+    for k in range(30):
+        foreground(Frame(100 + k, background(), None, scale=1.0, shared=shared))
+    fr = [Frame(200 + k, img, None, scale=1.0, shared=shared) for k, img in enumerate(frames[10:20])]
+    for f in fr:
+        foreground(f)
+    g = BlobExpert().propose(fr[-1], fr[-2], Entity(box=truth[18].copy()))
+    assert g is not None and np.linalg.norm(g.mean - box_center(truth[19])) < 3.0
+
+
 def test_blob_expert_rejects_areas_out_of_ratio(blob_video):
     fr, truth = blob_video
     big = truth[9].copy()

@@ -11,7 +11,7 @@ import pytest
 
 from artmotion.errors import InputError
 from artmotion.io import read_mot, write_mot
-from artmotion.tracking.metrics import HOTA_ALPHAS, evaluate, evaluate_sequences
+from artmotion.tracking.metrics import HOTA_ALPHAS, evaluate, evaluate_sequences, gt_rules
 
 sys.path.insert(0, str(Path(__file__).parent))
 from _trackeval_ref import KEYMAP, chain_tracks, trackeval_combined, trackeval_scores  # noqa: E402
@@ -216,6 +216,40 @@ def test_agrees_with_trackeval_on_mot15(seq, needs_trackeval):
             assert ours["IDS"] > 0 and 0 < ours["MOTA"] < 1 and 0 < ours["HOTA"] < 1  # a non-trivial case
     ours = evaluate(gt, cases["chained detections"], iou_threshold=0.3)
     assert_agrees(ours, trackeval_scores(gt, cases["chained detections"], threshold=0.3))
+
+
+def test_mot17_rules_agree_with_trackeval_on_mot16_09(needs_trackeval):
+    """9-column ground truth: pedestrians with consider = 1 only, boxes on distractors removed."""
+    root = shared_path("mot16", "MOT16-09")
+    gt = read_mot(root / "gt" / "gt.txt")
+    det = read_mot(root / "det" / "det.txt")
+    det = det[np.argsort(det[:, 0], kind="stable")]
+    # pseudo-tracks: chained detections plus ground-truth boxes of distractors (class 8, 12) and of
+    # consider = 0 pedestrians, so that the removal and the class filter both matter
+    extra = gt[np.isin(gt[:, 7], [8, 12]) | ((gt[:, 7] == 1) & (gt[:, 6] == 0))].copy()
+    extra[:, 1] += 10_000
+    extra[:, 6:] = -1
+    res = np.vstack([chain_tracks(det), extra])
+    ours = evaluate(root / "gt" / "gt.txt", res)
+    assert gt_rules(gt) == "mot17"
+    ref = trackeval_scores(gt, res, benchmark="MOT17")
+    for ours_key, ref_key in KEYMAP.items():
+        tol = 1e-3 if ours[ours_key] <= 1.0 else 0.5   # within 0.1 point (ratios) / exact counts
+        assert abs(ours[ours_key] - ref[ref_key]) <= tol, (ours_key, ours[ours_key], ref[ref_key])
+    # the rules matter here: MOT15 rules count the distractor boxes as false positives
+    assert evaluate(gt, res, rules="mot15")["FP"] > ours["FP"] + 100
+
+
+def test_distractor_matches_are_removed():
+    gt = np.array([[1, 1, 0, 0, 10, 20, 1, 1, 1.0],      # pedestrian
+                   [1, 2, 50, 0, 10, 20, 0, 8, 1.0],     # distractor
+                   [1, 3, 100, 0, 10, 20, 0, 1, 0.2]])   # pedestrian, not considered
+    res = np.array([[1, 1, 0, 0, 10, 20, 1], [1, 2, 50, 0, 10, 20, 1], [1, 3, 100, 0, 10, 20, 1]])
+    s = evaluate(gt, res)
+    assert (s["TP"], s["FP"], s["FN"]) == (1, 1, 0)   # the box on the distractor is removed
+    assert evaluate(gt, res, rules="mot15")["FP"] == 2
+    with pytest.raises(InputError, match="rules"):
+        evaluate(gt, res, rules="mot20")
 
 
 def _random_case(rng):

@@ -95,3 +95,113 @@ def test_bad_seqinfo(mot_folder):
     (mot_folder / "seqinfo.ini").write_text("[Sequence]\nframeRate=fast\n")
     with pytest.raises(InputError, match="frameRate|framerate"):
         open_sequence(mot_folder)
+
+
+# --- damaged media is an error, never a gray frame (reliability, root cause 1) ---------------
+
+
+def _jpeg_sequence(tmp_path, n: int = 8):
+    frames, truth = moving_blob(n=n)
+    root = write_mot_folder(tmp_path / "jseq", frames, [[k + 1, -1, *b, 0.9] for k, b in enumerate(truth)])
+    for k, img in enumerate(frames, start=1):                       # JPEG frames instead of PNG
+        (root / "img1" / f"{k:06d}.png").unlink()
+        cv2.imwrite(str(root / "img1" / f"{k:06d}.jpg"), img)
+    ini = root / "seqinfo.ini"
+    ini.write_text(ini.read_text().replace("imExt=.png", "imExt=.jpg"))
+    return root
+
+
+@pytest.mark.parametrize("damage", ["truncated", "corrupt"])
+def test_damaged_jpeg_frame_is_an_error(tmp_path, damage):
+    root = _jpeg_sequence(tmp_path)
+    f = root / "img1" / "000005.jpg"
+    data = bytearray(f.read_bytes())
+    if damage == "truncated":
+        data = data[: len(data) // 2]
+    else:
+        rng = np.random.default_rng(3)
+        k = len(data) // 3
+        data[k:k + 500] = rng.integers(0, 256, 500, dtype=np.uint8).tobytes()
+    f.write_bytes(bytes(data))
+    assert cv2.imread(str(f)) is not None           # OpenCV would have decoded it, partly gray
+    seq = open_sequence(root)
+    with pytest.raises(InputError, match=r"000005\.jpg: (truncated|corrupt) JPEG"):
+        list(seq.frames())
+
+
+def _video(path, frames, fourcc="MJPG"):
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 10.0, (W, H))
+    for img in frames:
+        out.write(img)
+    out.release()
+    return path
+
+
+def test_truncated_video_is_an_error(tmp_path):
+    frames, _ = moving_blob(n=40)
+    video = _video(tmp_path / "clip.avi", frames)
+    data = video.read_bytes()
+    video.write_bytes(data[: len(data) // 2])
+    seq = open_sequence(video)
+    assert seq.length == 40                          # the header still says 40
+    with pytest.raises(InputError, match=r"clip\.avi: video ends after \d+ of its 40 frames"):
+        list(seq.frames())
+
+
+def test_seqlength_must_match_the_video(tmp_path):
+    frames, _ = moving_blob(n=12)
+    root = tmp_path / "vseq"
+    root.mkdir()
+    _video(root / "clip.avi", frames)
+    (root / "seqinfo.ini").write_text("[Sequence]\nname=v\nframeRate=10\nseqLength=500\n")
+    with pytest.raises(InputError, match="says 500 frames but clip.avi has 12"):
+        open_sequence(root)
+    (root / "seqinfo.ini").write_text("[Sequence]\nname=v\nframeRate=10\nseqLength=12\n")
+    assert open_sequence(root).length == 12
+
+
+@pytest.mark.parametrize("line, needle", [("frameRate=inf", "out of range"), ("frameRate=nan", "out of range"),
+                                          ("frameRate=-3", "out of range"), ("frameRate=1e400", "out of range"),
+                                          ("seqLength=6.5", "not a whole number"), ("seqLength=inf", "out of range")])
+def test_seqinfo_numbers_are_finite_and_in_range(mot_folder, line, needle):
+    (mot_folder / "seqinfo.ini").write_text(f"[Sequence]\nname=b\n{line}\n")
+    with pytest.raises(InputError, match=needle):
+        open_sequence(mot_folder)
+
+
+def test_seqinfo_syntax_error_is_one_line(mot_folder):
+    (mot_folder / "seqinfo.ini").write_text("[Sequence]\nname=b\nthis is not a setting\n")
+    with pytest.raises(InputError) as info:
+        open_sequence(mot_folder)
+    assert "seqinfo.ini:3:" in str(info.value) and "\n" not in str(info.value)
+
+
+# --- anything is not a video (root cause 2) ---------------------------------------------------
+
+
+def test_text_file_is_not_a_video(tmp_path):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("hello\n" * 100)
+    with pytest.raises(InputError, match="notes.txt: not a video file name"):
+        open_sequence(notes)
+
+
+@pytest.mark.parametrize("content, needle", [(b"hello world\n" * 50, "not a video"), ("jpeg", "is an image")])
+def test_renamed_file_is_not_a_video(tmp_path, content, needle):
+    fake = tmp_path / "clip.mp4"
+    if content == "jpeg":
+        frames, _ = moving_blob(n=1)
+        content = cv2.imencode(".jpg", frames[0])[1].tobytes()
+    fake.write_bytes(content)
+    with pytest.raises(InputError, match=f"clip.mp4: {needle}"):
+        open_sequence(fake)
+
+
+# --- a companion file that is not a file (root cause 6) ---------------------------------------
+
+
+def test_detections_that_are_a_folder_are_an_error(mot_folder):
+    (mot_folder / "det" / "det.txt").unlink()
+    (mot_folder / "det" / "det.txt").mkdir()
+    with pytest.raises(InputError, match=r"det\.txt: not a file"):
+        open_sequence(mot_folder)

@@ -10,17 +10,25 @@ def eval_command(
     results: str = typer.Argument(..., metavar="RESULTS.txt", help="Tracking results, MOTChallenge text."),
     json_out: bool = typer.Option(False, "--json", help="Print every score as JSON instead of a table."),
     iou: float = typer.Option(0.5, "--iou", help="IoU a match needs for CLEAR MOT and IDF1 (HOTA sweeps 0.05..0.95)."),
+    rules: str = typer.Option("auto", "--rules", metavar="auto|mot15|mot17",
+                              help="MOTChallenge rules: mot17 keeps pedestrians with consider=1 and removes "
+                                   "result boxes on distractors; auto: mot17 for 9-column ground truth."),
 ) -> None:
-    """Score tracking results: MOTA, MOTP, IDF1, HOTA, MT/PT/ML, FM, IDS, FP, FN (MOT15 conventions)."""
+    """Score tracking results: MOTA, MOTP, IDF1, HOTA, MT/PT/ML, FM, IDS, FP, FN (MOTChallenge rules)."""
     import json
 
-    from artmotion.tracking.metrics import evaluate, format_table
+    from artmotion.tracking.metrics import evaluate, format_table, gt_rules
 
-    scores = evaluate(gt, results, iou_threshold=iou)
+    scores = evaluate(gt, results, iou_threshold=iou, rules=rules)
+    if rules == "auto":
+        from artmotion.io import read_mot
+
+        rules = gt_rules(read_mot(gt))
+    scores["rules"] = rules
     if json_out:
         typer.echo(json.dumps(scores, indent=2))
     else:
-        typer.echo(format_table(scores, gt=gt, results=results, iou_threshold=iou))
+        typer.echo(format_table(scores, gt=gt, results=results, iou_threshold=iou, rules=rules))
 
 
 def track_command(
@@ -32,9 +40,10 @@ def track_command(
     events: str = typer.Option(None, "--events", metavar="EVENTS.jsonl",
                                help="Write enter/exit/merge/split events (JSON lines)."),
     video: str = typer.Option(None, "--video", metavar="ANNOTATED.mp4", help="Write an annotated video."),
-    experts: str = typer.Option("det,klt,blob,motion,flow", "--experts",
-                                help="Comma-separated tracking experts to fuse."),
+    experts: str = typer.Option(None, "--experts",
+                                help="Comma-separated tracking experts to fuse (default: det,klt,blob,motion)."),
     online: bool = typer.Option(False, "--online", help="Causal results only (no second, offline pass)."),
+    fps: float = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder of images)."),
     progress: bool = typer.Option(None, "--progress/--no-progress",
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:
@@ -44,14 +53,15 @@ def track_command(
 
     from artmotion.errors import InputError
     from artmotion.io import write_events, write_mot
-    from artmotion.tracking import track
+    from artmotion.tracking import DEFAULT_EXPERTS, track
 
     for path in (out, events, video):
         if path and Path(path).is_dir():
             raise InputError("is a folder; give a file name", path=path)
     if progress is None:
         progress = sys.stderr.isatty()
-    res = track(source, det=det, experts=experts, online=online, progress=progress, video=video)
+    res = track(source, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,
+                fps=fps)
     if out:
         write_mot(out, res.tracks)
     if events:
@@ -61,7 +71,8 @@ def track_command(
         counts[ev["type"]] = counts.get(ev["type"], 0) + 1
     seq = res.sequence
     kinds = ", ".join(f"{counts[k]} {k}" for k in ("enter", "exit", "merge", "split") if k in counts)
-    typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height} @ {seq.fps:g} fps, "
+    assumed = "" if seq.fps_known else " (assumed; give --fps)"
+    typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height} @ {seq.fps:g} fps{assumed}, "
                f"detections: {res.detector}, experts: {','.join(res.experts)}"
                f"{' (online)' if online else ''}")
     typer.echo(f"{res.num_tracks} tracks, {len(res.tracks)} boxes, {len(res.events)} events"

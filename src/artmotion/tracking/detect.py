@@ -14,11 +14,18 @@ __all__ = ["HOGPeopleDetector", "load_detections", "normalise_scores"]
 
 
 def normalise_scores(scores: np.ndarray) -> np.ndarray:
-    """Scores as confidences in [0, 1]: kept if they already are, else a logistic of the margin."""
+    """Scores as confidences in [0, 1], read from the input's own range.
+
+    Scores already in [0, 1] (a detector's probabilities) are kept. Others (DPM's or ACF's
+    margins, whose scale depends on the detector) are replaced by their mid-rank among all the
+    file's scores, ``(#below + #below-or-equal) / 2n``: the tracker's thresholds then select the
+    same share of each detector's most confident detections, whatever its scale.
+    """
     s = np.asarray(scores, dtype=float)
     if not len(s) or (s.min() >= 0.0 and s.max() <= 1.0):
         return s
-    return 1.0 / (1.0 + np.exp(-s))
+    srt = np.sort(s)
+    return (np.searchsorted(srt, s, "left") + np.searchsorted(srt, s, "right")) / (2.0 * len(s))
 
 
 def load_detections(path: str | os.PathLike) -> dict[int, np.ndarray]:

@@ -70,14 +70,17 @@ class Frame:
     ``image`` is the BGR frame, ``number`` its 1-based index, ``detections`` an ``(N, 5)`` array
     ``x, y, w, h, score``. Derived images are computed once, on demand, at ``scale`` (a
     downscaled copy keeps dense flow, KLT and background subtraction cheap); results are always
-    returned in full-image pixels.
+    returned in full-image pixels. ``image_scale``: the size of ``image`` relative to the full
+    frame (a frame decoded at reduced size, :meth:`Sequence.frames`), whose size is
+    ``width`` × ``height``.
     """
 
     def __init__(self, number: int, image: np.ndarray, detections=None, scale: float = 1.0,
-                 shared: dict | None = None):
+                 shared: dict | None = None, image_scale: float = 1.0):
         self.number = number
         self.image = image
-        self.height, self.width = image.shape[:2]
+        self.image_scale = float(image_scale)
+        self.height, self.width = (int(round(v / self.image_scale)) for v in image.shape[:2])
         self.scale = float(scale)
         self.detections = (np.zeros((0, 5)) if detections is None
                            else np.asarray(detections, dtype=float).reshape(-1, 5))
@@ -98,9 +101,10 @@ class Frame:
     def small(self) -> np.ndarray:
         """Downscaled BGR image."""
         def make():
-            if self.scale == 1.0:
+            f = self.scale / self.image_scale
+            if abs(f - 1.0) < 1e-9:
                 return self.image
-            return cv2.resize(self.image, None, fx=self.scale, fy=self.scale, interpolation=cv2.INTER_AREA)
+            return cv2.resize(self.image, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
         return self.cached("small", make)
 
     @property
@@ -357,9 +361,15 @@ class KLTExpert(Expert):
 def foreground(frame: Frame, prev: Frame | None = None) -> np.ndarray:
     """The frame's foreground mask (uint8 0/255, downscaled), from the shared MOG2 model.
 
-    The model is updated once per frame, in frame order, whoever asks first.
+    The model is updated once per frame, in frame order, whoever asks first. Background
+    subtraction assumes a still camera: while the tracker judges the camera to move
+    (``frame.shared["camera_moving"]``) the mask is empty (no opinion) and the model is dropped,
+    to be learnt afresh once the camera is still.
     """
     def make():
+        if frame.shared.get("camera_moving"):
+            frame.shared.pop("bg", None)
+            return np.zeros(frame.small.shape[:2], np.uint8)
         bg = frame.shared.get("bg")
         if bg is None:
             bg = cv2.createBackgroundSubtractorMOG2(history=200, varThreshold=16, detectShadows=True)

@@ -4,8 +4,13 @@ Our own implementation of the definitions, following the conventions of TrackEva
 ``MotChallenge2DBox`` for the MOT15 benchmark, so that the numbers agree with it:
 
 * boxes are ``x, y, w, h`` (columns 2..5); the similarity is their IoU;
-* ground-truth rows whose confidence column (6) truncates to 0 are ignored (MOT15 has no
-  classes, so there is no distractor removal and no class filter); result rows are all kept;
+* ground-truth rows whose confidence column (6) truncates to 0 are ignored;
+* MOT15 rules (10-column ground truth, no classes): result rows are all kept;
+* MOT16/17 rules (9-column ground truth ``frame,id,x,y,w,h,consider,class,visibility``, detected
+  from the class column, or asked for with ``rules="mot17"``): only class 1 (pedestrian) with
+  consider = 1 is ground truth, and a result box matched (Hungarian on IoU >= 0.5, per frame) to a
+  ground-truth box of a distractor class (2 person on vehicle, 7 static person, 8 distractor,
+  12 reflection) is removed before scoring -- TrackEval's ``BENCHMARK=MOT17`` preprocessing;
 * an id may appear at most once per frame, in the ground truth and in the results.
 
 CLEAR MOT (Bernardin & Stiefelhagen 2008) matches per frame with the Hungarian algorithm on IoU
@@ -28,7 +33,7 @@ from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 
-__all__ = ["evaluate", "evaluate_sequences", "format_table", "HOTA_ALPHAS", "METRIC_ORDER"]
+__all__ = ["evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
 
 EPS = np.finfo(float).eps
 #: The HOTA localisation thresholds (the same floats TrackEval uses).
@@ -38,6 +43,57 @@ METRIC_ORDER = (
     "MOTA", "MOTP", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA", "LocA",
     "GT", "MT", "PT", "ML", "FM", "IDS", "FP", "FN", "TP", "GT_DETS", "Precision", "Recall",
 )
+
+
+#: MOT16/17 classes: 1 pedestrian ... 13; a result box on one of these is not a false positive.
+MOT17_CLASSES = frozenset(range(1, 14))
+MOT17_DISTRACTORS = (2, 7, 8, 12)
+RULES = ("auto", "mot15", "mot17")
+
+
+def gt_rules(gt: np.ndarray) -> str:
+    """``"mot17"`` if the ground truth has MOT16/17's class column (column 8 holds classes 1..13 on
+    every row, where MOT15 files hold -1 or world coordinates), else ``"mot15"``."""
+    if not len(gt):
+        return "mot15"
+    cls = gt[:, 7]
+    return "mot17" if bool(np.all(np.isin(cls, list(MOT17_CLASSES)))) and bool(np.all(gt[:, 9] == -1)) else "mot15"
+
+
+def _remove_distractor_matches(gt: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Drop result rows matched (per frame, Hungarian on IoU >= 0.5) to a distractor-class box.
+
+    TrackEval's MOT17 preprocessing: the matching uses every ground-truth box of the frame, also
+    those with consider = 0.
+    """
+    keep = np.ones(len(res), bool)
+    g_frames = gt[:, 0].astype(int)
+    r_frames = res[:, 0].astype(int)
+    for f in np.intersect1d(g_frames, r_frames):
+        gi = np.flatnonzero(g_frames == f)
+        ri = np.flatnonzero(r_frames == f)
+        sim = iou_matrix(gt[gi, 2:6], res[ri, 2:6])
+        sim[sim < 0.5 - EPS] = 0
+        rows, cols = linear_sum_assignment(-sim)
+        ok = sim[rows, cols] > EPS
+        rows, cols = rows[ok], cols[ok]
+        distractor = np.isin(gt[gi[rows], 7], MOT17_DISTRACTORS)
+        keep[ri[cols[distractor]]] = False
+    return res[keep]
+
+
+def _apply_rules(gt: np.ndarray, res: np.ndarray, rules: str) -> tuple[np.ndarray, np.ndarray]:
+    """Ground truth and results as they are scored under ``rules`` (see the module docstring)."""
+    if rules not in RULES:
+        raise InputError(f"unknown rules {rules!r} (choose from {', '.join(RULES)})")
+    if rules == "auto":
+        rules = gt_rules(gt)
+    if rules == "mot17":
+        if len(res) and len(gt):
+            res = _remove_distractor_matches(gt, res)
+        gt = gt[gt[:, 7] == 1]
+    # Every benchmark: gt rows with confidence 0 ("zero marked", consider = 0) are not evaluated.
+    return gt[np.trunc(gt[:, 6]) != 0], res
 
 
 @dataclass
@@ -73,8 +129,10 @@ def _load(x, what: str) -> tuple[np.ndarray, str | None]:
         raise InputError(f"{what}: frame numbers must be positive integers")
     if (arr[:, 4] <= 0).any() or (arr[:, 5] <= 0).any():
         raise InputError(f"{what}: non-positive box size")
-    if arr.shape[1] == 6:  # no confidence column: every row counts
-        arr = np.hstack([arr, np.ones((len(arr), 1))])
+    # pad like read_mot: conf = 1 (every row counts), the other columns -1
+    pad = np.array([1.0, -1.0, -1.0, -1.0])[max(0, arr.shape[1] - 6):]
+    if len(pad):
+        arr = np.hstack([arr, np.tile(pad, (len(arr), 1))])
     return arr, None
 
 
@@ -92,8 +150,6 @@ def _check_ids(arr: np.ndarray, what: str, path: str | None) -> None:
 
 
 def _prepare(gt: np.ndarray, res: np.ndarray) -> _Frames:
-    # MOT15 convention: gt rows with confidence 0 ("zero marked") are not evaluated.
-    gt = gt[np.trunc(gt[:, 6]) != 0]
     # Relabel ids to 0..n-1 (sorted, as TrackEval does) and group rows by frame, keeping file order.
     gt_u, gt_lab = np.unique(gt[:, 1], return_inverse=True)
     tr_u, tr_lab = np.unique(res[:, 1], return_inverse=True)
@@ -259,28 +315,18 @@ def _hota(d: _Frames) -> dict:
     }
 
 
-def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False) -> dict:
-    """Score tracking results ``res`` against ground truth ``gt`` (one sequence).
-
-    Both are MOTChallenge arrays ``(N, >=6)`` — ``frame, id, x, y, w, h[, conf, ...]`` — or paths
-    of MOTChallenge text files. ``iou_threshold`` is the IoU a match needs for CLEAR MOT and IDF1
-    (HOTA sweeps its own thresholds).
-
-    Returns a dict of plain Python numbers: ``MOTA, MOTP, MODA, IDF1, IDP, IDR, IDTP, IDFP, IDFN,
-    HOTA, DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MT, PT, ML, FM, IDS, FP, FN, TP, GT``
-    (ground-truth boxes evaluated), ``GT_IDS`` (ground-truth tracks), ``Precision, Recall,
-    Frames`` (the last frame number); with ``per_alpha`` also the lists ``HOTA_alpha, DetA_alpha,
-    AssA_alpha`` over :data:`HOTA_ALPHAS`. Every other value is a plain ``int`` or ``float``.
-    Raises :class:`~artmotion.errors.InputError` for unreadable or inconsistent input.
-    """
-    thr = float(iou_threshold)
-    if not 0.0 < thr <= 1.0:
-        raise InputError(f"IoU threshold must be in (0, 1], got {iou_threshold!r}")
-    gt_arr, gt_path = _load(gt, "ground truth")
-    res_arr, res_path = _load(res, "results")
+def _load_pair(gt, res, rules: str, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Ground truth and results read, validated and prepared under ``rules``."""
+    suffix = f" #{k + 1}" if k is not None else ""
+    gt_arr, gt_path = _load(gt, "ground truth" + suffix)
+    res_arr, res_path = _load(res, "results" + suffix)
     _check_ids(gt_arr, "ground truth", gt_path)
     _check_ids(res_arr, "results", res_path)
-    d = _prepare(gt_arr, res_arr)
+    return _apply_rules(gt_arr, res_arr, rules)
+
+
+def _scores(gt: np.ndarray, res: np.ndarray, thr: float, per_alpha: bool) -> dict:
+    d = _prepare(gt, res)
     out = {}
     out.update(_clear(d, thr))
     out.update(_identity(d, thr))
@@ -290,20 +336,46 @@ def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False) -> di
             for k, v in out.items() if per_alpha or not k.endswith("_alpha")}
 
 
-def evaluate_sequences(pairs, iou_threshold: float = 0.5, per_alpha: bool = False) -> dict:
+def _threshold(iou_threshold) -> float:
+    thr = float(iou_threshold)
+    if not 0.0 < thr <= 1.0:
+        raise InputError(f"IoU threshold must be in (0, 1], got {iou_threshold!r}")
+    return thr
+
+
+def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False, rules: str = "auto") -> dict:
+    """Score tracking results ``res`` against ground truth ``gt`` (one sequence).
+
+    Both are MOTChallenge arrays ``(N, >=6)`` — ``frame, id, x, y, w, h[, conf, ...]`` — or paths
+    of MOTChallenge text files. ``iou_threshold`` is the IoU a match needs for CLEAR MOT and IDF1
+    (HOTA sweeps its own thresholds). ``rules``: ``"mot15"``, ``"mot17"`` (class filter and
+    distractor removal, see the module docstring) or ``"auto"`` (MOT17 rules for ground truth with
+    MOT16/17's class column, :func:`gt_rules`).
+
+    Returns a dict of plain Python numbers: ``MOTA, MOTP, MODA, IDF1, IDP, IDR, IDTP, IDFP, IDFN,
+    HOTA, DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MT, PT, ML, FM, IDS, FP, FN, TP, GT``
+    (ground-truth boxes evaluated), ``GT_IDS`` (ground-truth tracks), ``Precision, Recall,
+    Frames`` (the last frame number); with ``per_alpha`` also the lists ``HOTA_alpha, DetA_alpha,
+    AssA_alpha`` over :data:`HOTA_ALPHAS`. Every other value is a plain ``int`` or ``float``.
+    Raises :class:`~artmotion.errors.InputError` for unreadable or inconsistent input.
+    """
+    thr = _threshold(iou_threshold)
+    return _scores(*_load_pair(gt, res, rules), thr, per_alpha)
+
+
+def evaluate_sequences(pairs, iou_threshold: float = 0.5, per_alpha: bool = False, rules: str = "auto") -> dict:
     """Scores over several sequences, ``pairs`` of ``(gt, res)`` (arrays or paths).
 
     The sequences are concatenated with disjoint frames and ids and scored as one, which sums the
     CLEAR and identity counts and weights HOTA's association by its true positives: the same as
-    TrackEval's combined (``COMBINED_SEQ``) result.
+    TrackEval's combined (``COMBINED_SEQ``) result. ``rules`` apply to each sequence
+    (``"auto"``: decided per sequence).
     """
+    thr = _threshold(iou_threshold)
     gts, ress = [], []
     frame_off = id_off = 0
     for k, (gt, res) in enumerate(pairs):
-        g, g_path = _load(gt, f"ground truth #{k + 1}")
-        r, r_path = _load(res, f"results #{k + 1}")
-        _check_ids(g, "ground truth", g_path)
-        _check_ids(r, "results", r_path)
+        g, r = _load_pair(gt, res, rules, k)
         g, r = g[:, :7].copy(), r[:, :7].copy()
         span = int(max(g[:, 0].max(initial=0), r[:, 0].max(initial=0)))
         lo = min(g[:, 1].min(initial=0), r[:, 1].min(initial=0))
@@ -318,10 +390,10 @@ def evaluate_sequences(pairs, iou_threshold: float = 0.5, per_alpha: bool = Fals
         id_off += int(hi - lo) + 1
     if not gts:
         raise InputError("no sequences to evaluate")
-    return evaluate(np.vstack(gts), np.vstack(ress), iou_threshold=iou_threshold, per_alpha=per_alpha)
+    return _scores(np.vstack(gts), np.vstack(ress), thr, per_alpha)
 
 
-def format_table(scores: dict, gt=None, results=None, iou_threshold: float = 0.5) -> str:
+def format_table(scores: dict, gt=None, results=None, iou_threshold: float = 0.5, rules: str | None = None) -> str:
     """A plain-text table of :func:`evaluate`'s scores (ratios as percentages)."""
     ratio_keys = ("MOTA", "MOTP", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA", "Precision", "Recall")
     count_keys = ("GT", "MT", "PT", "ML", "FM", "IDS", "FP", "FN", "TP", "GT_DETS")
@@ -331,7 +403,8 @@ def format_table(scores: dict, gt=None, results=None, iou_threshold: float = 0.5
         lines.append(f"ground truth: {os.fspath(gt)}" if isinstance(gt, (str, os.PathLike)) else "ground truth: array")
     if results is not None:
         lines.append(f"results:      {os.fspath(results)}" if isinstance(results, (str, os.PathLike)) else "results: array")
-    lines.append(f"frames: {scores['Frames']}   IoU threshold: {iou_threshold:g}   (ratios in %)")
+    rule = f"   rules: {rules.upper()}" if rules else ""
+    lines.append(f"frames: {scores['Frames']}   IoU threshold: {iou_threshold:g}{rule}   (ratios in %)")
     lines.append("")
 
     def row(keys, fmt):

@@ -2,8 +2,10 @@
 
 A MOTChallenge folder has ``seqinfo.ini`` and its frames either in ``img1/`` (``000001.jpg``...)
 or as the single video file in the folder; ``det/det.txt`` and ``gt/gt.txt`` are picked up when
-present. Every problem (missing, unreadable or out-of-order frames, a broken video, an empty
-folder) is an :class:`~artmotion.errors.InputError` naming the file.
+present. Every problem (missing, damaged or out-of-order frames, a video that ends before its
+declared length, a file that is not a video, an empty folder, an implausible ``seqinfo.ini``) is
+an :class:`~artmotion.errors.InputError` naming the file; images are checked by
+:func:`artmotion.io.media.read_image` (a truncated JPEG is an error, not a gray frame).
 """
 
 from __future__ import annotations
@@ -20,10 +22,12 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
+from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS, check_video, read_image
 
-IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")
-VIDEO_EXTS = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv")
 DEFAULT_FPS = 25.0
+#: containers whose frame count is exact (an index of every frame): a video of this kind that
+#: decodes fewer frames than it declares is damaged; others may declare an estimate
+_EXACT_COUNT = frozenset({".mp4", ".m4v", ".mov", ".avi"})
 
 __all__ = ["Sequence", "open_sequence", "IMAGE_EXTS", "VIDEO_EXTS"]
 
@@ -54,6 +58,10 @@ class Sequence:
         self.video = video
         self.det_path = det_path
         self.gt_path = gt_path
+        #: False when the frame rate was not in the input and DEFAULT_FPS is assumed
+        self.fps_known = True
+        #: whether ``length`` is exact for a video (seqinfo.ini, or a container with a frame index)
+        self.length_exact = video is None or video.suffix.lower() in _EXACT_COUNT
 
     def __len__(self) -> int:
         return self.length
@@ -62,26 +70,30 @@ class Sequence:
         return (f"Sequence({self.name!r}, {self.length} frames, {self.width}x{self.height}, "
                 f"{self.fps:g} fps)")
 
-    def frames(self, prefetch: int = 8) -> Iterator[tuple[int, np.ndarray]]:
+    def frames(self, prefetch: int = 8, reduce: int = 1) -> Iterator[tuple[int, np.ndarray]]:
         """Yield ``(frame_number, BGR uint8 image)`` with 1-based, consecutive frame numbers.
 
         A background thread decodes up to ``prefetch`` frames ahead (OpenCV releases the GIL
         while decoding), so decoding overlaps the caller's work; ``prefetch=0`` reads in line.
+        ``reduce`` (1, 2, 4 or 8) yields images that many times smaller on each side (about
+        ``ceil(size / reduce)``): JPEG frames are then decoded at that size directly (libjpeg's
+        DCT scaling, several times cheaper), video frames are downscaled in the decoding thread.
         """
+        if reduce not in _REDUCED:
+            raise ValueError(f"reduce must be one of {sorted(_REDUCED)}, got {reduce!r}")
         if prefetch <= 0:
-            yield from self._read()
+            yield from self._read(reduce)
             return
-        yield from _prefetched(self._read(), prefetch)
+        yield from _prefetched(self._read(reduce), prefetch)
 
-    def _read(self) -> Iterator[tuple[int, np.ndarray]]:
+    def _read(self, reduce: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+        want = (-(-self.height // reduce), -(-self.width // reduce))
         if self.images is not None:
             for i, p in enumerate(self.images, start=1):
-                img = cv2.imread(str(p), cv2.IMREAD_COLOR)
-                if img is None:
-                    raise InputError("cannot read image (missing or corrupt)", path=p)
-                if img.shape[:2] != (self.height, self.width):
+                img = read_image(p, _REDUCED[reduce])
+                if abs(img.shape[0] - want[0]) > 1 or abs(img.shape[1] - want[1]) > 1:
                     raise InputError(
-                        f"image size {img.shape[1]}x{img.shape[0]} differs from the sequence's "
+                        f"image size {img.shape[1] * reduce}x{img.shape[0] * reduce} differs from the sequence's "
                         f"{self.width}x{self.height}", path=p)
                 yield i, img
             return
@@ -97,11 +109,24 @@ class Sequence:
                 n += 1
                 if img.ndim == 2:
                     img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+                if reduce > 1:
+                    img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield n, img
+                if n == self.length and self.length_exact:
+                    break
             if n == 0:
                 raise InputError("video has no decodable frames", path=self.video)
+            short = self.length - n if self.length_exact else self.length - n - max(2, self.length // 50)
+            if short > 0:
+                raise InputError(f"video ends after {n} of its {self.length} frames (truncated or damaged)",
+                                 path=self.video)
         finally:
             cap.release()
+
+
+#: imread flags that decode an image ``k`` times smaller on each side
+_REDUCED = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
+            8: cv2.IMREAD_REDUCED_COLOR_8}
 
 
 _DONE = object()
@@ -129,6 +154,10 @@ def _prefetched(items: Iterator, depth: int) -> Iterator:
             put((_DONE, None))
         except BaseException as exc:  # handed to the consumer
             put((_DONE, exc))
+        finally:
+            close = getattr(items, "close", None)
+            if close is not None:
+                close()               # the reader's own clean-up (release the video) in this thread
 
     thread = threading.Thread(target=work, name="artmotion-frames", daemon=True)
     thread.start()
@@ -145,9 +174,9 @@ def _prefetched(items: Iterator, depth: int) -> Iterator:
         thread.join(timeout=5)
 
 
-def _probe_video(video: Path) -> tuple[float, int, int, int]:
-    if not video.is_file():
-        raise InputError("no such file", path=video)
+def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
+    """Frame rate (``None`` if the file does not say), width, height and frame count of a video."""
+    check_video(video)
     cap = cv2.VideoCapture(str(video))
     try:
         if not cap.isOpened():
@@ -159,13 +188,12 @@ def _probe_video(video: Path) -> tuple[float, int, int, int]:
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
     finally:
         cap.release()
-    if not np.isfinite(fps) or fps <= 0 or fps > 1000:
-        fps = DEFAULT_FPS
-    return float(fps), img.shape[1], img.shape[0], max(count, 1)
+    known = np.isfinite(fps) and 0 < fps <= 1000
+    return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1)
 
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
-    exts = (ext.lower(),) if ext else IMAGE_EXTS
+    exts = {ext.lower()} if ext else IMAGE_EXTS
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in exts]
     if not files:
         raise InputError("no images in folder" if not ext else f"no '{ext}' images in folder", path=folder)
@@ -186,9 +214,7 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
 
 
 def _image_size(path: Path) -> tuple[int, int]:
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError("cannot read image (missing or corrupt)", path=path)
+    img = read_image(path)
     return img.shape[1], img.shape[0]
 
 
@@ -196,34 +222,61 @@ def _read_seqinfo(ini: Path) -> dict:
     cp = configparser.ConfigParser()
     try:
         cp.read_string(ini.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, configparser.Error) as exc:
-        raise InputError(f"cannot parse seqinfo.ini: {exc}", path=ini) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=ini) from None
+    except UnicodeDecodeError:
+        raise InputError("not UTF-8 text", path=ini) from None
+    except configparser.MissingSectionHeaderError as exc:
+        raise InputError("no [Sequence] section header before the first setting", path=ini, line=exc.lineno) from None
+    except configparser.ParsingError as exc:
+        line = exc.errors[0][0] if exc.errors else None
+        raise InputError("not a 'key=value' line", path=ini, line=line) from None
+    except configparser.Error as exc:
+        raise InputError(f"cannot parse: {exc.message.splitlines()[0]}", path=ini) from None
     if not cp.has_section("Sequence"):
         raise InputError("missing [Sequence] section", path=ini)
     return dict(cp["Sequence"])
 
 
+#: plausible ranges of the numbers of seqinfo.ini
+_RANGES = {"framerate": (0.0, 1000.0), "seqlength": (0, 10_000_000)}
+
+
 def _num(info: dict, key: str, ini: Path, kind=float):
+    """``info[key]`` as a number of ``kind`` in its plausible range, ``None`` when absent."""
     if key not in info:
         return None
+    lo, hi = _RANGES[key]
     try:
-        v = kind(float(info[key]))
+        v = float(info[key])
     except ValueError:
         raise InputError(f"{key}={info[key]!r} is not a number", path=ini) from None
-    if v <= 0:
-        raise InputError(f"{key} must be positive, got {info[key]}", path=ini)
-    return v
+    if not np.isfinite(v) or not lo < v <= hi:
+        raise InputError(f"{key}={info[key]} is out of range ({lo:g}, {hi:g}]", path=ini)
+    if kind is int and v != int(v):
+        raise InputError(f"{key}={info[key]} is not a whole number", path=ini)
+    return kind(v)
+
+
+def _companion(path: Path) -> Path | None:
+    """``det/det.txt`` or ``gt/gt.txt`` of a sequence: ``None`` when absent; an error when
+    something is there that is not a readable file (a folder, a dangling link)."""
+    if not path.exists() and not path.is_symlink():
+        return None
+    if not path.is_file():
+        raise InputError("not a file", path=path)
+    return path
 
 
 def _open_mot_folder(folder: Path) -> Sequence:
     ini = folder / "seqinfo.ini"
     info = _read_seqinfo(ini)
     name = info.get("name", folder.name)
-    fps = _num(info, "framerate", ini) or DEFAULT_FPS
-    det = folder / "det" / "det.txt"
-    gt = folder / "gt" / "gt.txt"
-    det = det if det.is_file() else None
-    gt = gt if gt.is_file() else None
+    fps = _num(info, "framerate", ini)
+    known = fps is not None
+    fps = fps or DEFAULT_FPS
+    det = _companion(folder / "det" / "det.txt")
+    gt = _companion(folder / "gt" / "gt.txt")
     img_dir = folder / info.get("imdir", "img1")
     if img_dir.is_dir():
         ext = info.get("imext")
@@ -233,15 +286,24 @@ def _open_mot_folder(folder: Path) -> Sequence:
             raise InputError(f"seqinfo.ini says {length} frames but {img_dir.name}/ has {len(images)}",
                              path=img_dir)
         w, h = _image_size(images[0])
-        return Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt)
+        seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt)
+        seq.fps_known = known
+        return seq
     videos = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
     if not videos:
         raise InputError(f"no frames: neither {img_dir.name}/ nor a video file in the folder", path=folder)
     if len(videos) > 1:
         raise InputError(f"several video files in the folder ({', '.join(v.name for v in videos)})", path=folder)
     vfps, w, h, count = _probe_video(videos[0])
-    length = _num(info, "seqlength", ini, int) or count
-    return Sequence(folder, name, fps, w, h, length, video=videos[0], det_path=det, gt_path=gt)
+    length = _num(info, "seqlength", ini, int)
+    exact = videos[0].suffix.lower() in _EXACT_COUNT
+    if length is not None and exact and length != count:
+        raise InputError(f"seqinfo.ini says {length} frames but {videos[0].name} has {count}", path=ini)
+    seq = Sequence(folder, name, fps if known else (vfps or DEFAULT_FPS), w, h, length or count, video=videos[0],
+                   det_path=det, gt_path=gt)
+    seq.fps_known = known or vfps is not None
+    seq.length_exact = exact or length is not None
+    return seq
 
 
 def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
@@ -263,6 +325,10 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
             raise
     if path.suffix.lower() in IMAGE_EXTS:
         raise InputError("a single image is not a sequence; give its folder", path=path)
+    if path.suffix.lower() not in VIDEO_EXTS:
+        kinds = ", ".join(sorted(VIDEO_EXTS))
+        raise InputError(f"not a video file name (extension {path.suffix or 'none'}; videos are {kinds}), "
+                         "an image folder or a MOTChallenge folder", path=path)
     return _open_video(path)
 
 
@@ -270,17 +336,21 @@ def _open_image_folder(folder: Path) -> Sequence:
     images = _list_images(folder)
     w, h = _image_size(images[0])
     parent = folder.parent
-    det = parent / "det" / "det.txt"
-    gt = parent / "gt" / "gt.txt"
-    return Sequence(folder, folder.name if folder.name != "img1" else parent.name, DEFAULT_FPS, w, h,
-                    len(images), images=images,
-                    det_path=det if det.is_file() else None, gt_path=gt if gt.is_file() else None)
+    det = _companion(parent / "det" / "det.txt")
+    gt = _companion(parent / "gt" / "gt.txt")
+    # the img1/ folder of a MOTChallenge sequence: its frame rate is in the parent's seqinfo.ini
+    ini = parent / "seqinfo.ini"
+    fps = _num(_read_seqinfo(ini), "framerate", ini) if ini.is_file() else None
+    seq = Sequence(folder, folder.name if folder.name != "img1" else parent.name, fps or DEFAULT_FPS, w, h,
+                   len(images), images=images, det_path=det, gt_path=gt)
+    seq.fps_known = fps is not None
+    return seq
 
 
 def _open_video(video: Path, name: str | None = None, folder: Path | None = None) -> Sequence:
     fps, w, h, count = _probe_video(video)
     base = folder or video.parent
-    det = base / "det" / "det.txt"
-    gt = base / "gt" / "gt.txt"
-    return Sequence(video, name or video.stem, fps, w, h, count, video=video,
-                    det_path=det if det.is_file() else None, gt_path=gt if gt.is_file() else None)
+    seq = Sequence(video, name or video.stem, fps or DEFAULT_FPS, w, h, count, video=video,
+                   det_path=_companion(base / "det" / "det.txt"), gt_path=_companion(base / "gt" / "gt.txt"))
+    seq.fps_known = fps is not None
+    return seq

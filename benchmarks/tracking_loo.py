@@ -1,0 +1,413 @@
+#!/usr/bin/env python
+"""Leave-one-sequence-out choice of the tracker's settings, and the ablation of its components.
+
+Every setting of :class:`artmotion.tracking.TrackerConfig` that matters (and the set of tracking
+experts) has a few candidate values in :data:`SPACE`. A *fold* holds one sequence out: a greedy
+coordinate search moves, one setting at a time, to the value that raises the **objective on the
+four training sequences** — the mean over them of ``(MOTA + IDF1 + HOTA) / 3`` — by more than
+``--min-gain``, and stops when a whole pass over the settings moves nothing. It runs from a fixed,
+data-independent start (:data:`START`) and from two seeded random points; the end point with the
+best training objective is the fold's choice. The held-out sequence is then scored with it; its
+scores never enter the choice. The defaults of the package are the same procedure run on all five
+sequences (``fold: all``); the leave-one-out scores estimate how well the procedure transfers.
+
+Every configuration is scored on every sequence once and cached (``--cache``, JSON lines), so
+folds share work and a re-run only computes what is new. Frames are decoded once per sequence (at
+the size the tracker works at) and the tracker runs in two forked worker processes.
+
+The **ablation** starts from the package defaults and switches one component at a time (each
+expert, group nodes, the parts of the offline pass, entry/exit tests, appearance, camera motion,
+low-score detections), reporting the mean MOTA/IDF1/HOTA over the five sequences with and without.
+
+Usage::
+
+    python benchmarks/tracking_loo.py [--cache out/tracking_loo.jsonl] [--workers 2] [--folds all,PETS09-S2L1,...]
+
+Prints the tables; ``benchmarks/tracking.py`` writes them into docs/tracking.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import sys
+import time
+from dataclasses import asdict, fields
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared" / "data"
+sys.path.insert(0, str(ROOT / "src"))
+
+from artmotion.tracking import DEFAULT_EXPERTS, TrackerConfig, open_sequence, run_tracker  # noqa: E402
+from artmotion.tracking.api import _work_reduce  # noqa: E402
+from artmotion.tracking.detect import load_detections  # noqa: E402
+from artmotion.tracking.metrics import evaluate  # noqa: E402
+from artmotion.tracking.mot import MultiObjectTracker  # noqa: E402
+
+SEQUENCES = {
+    "PETS09-S2L1": SHARED / "mot15" / "PETS09-S2L1",
+    "TUD-Campus": SHARED / "mot15" / "TUD-Campus",
+    "ETH-Sunnyday": SHARED / "mot15" / "ETH-Sunnyday",
+    "KITTI-17": SHARED / "mot15" / "KITTI-17",
+    "MOT16-09": SHARED / "mot16" / "MOT16-09",
+}
+KEYS = ("MOTA", "IDF1", "HOTA")
+
+#: candidate values of every setting searched (``experts``: the tracking experts)
+SPACE: dict[str, list] = {
+    "experts": ["det,motion", "det,klt,motion", "det,klt,blob,motion", "det,klt,flow,motion",
+                "det,klt,blob,flow,motion"],
+    "experts_when": ["lost"],      # "all" is over the speed budget (ablation only)
+    "high": [0.5, 0.6, 0.7, 0.8, 0.9],
+    "low": [0.1, 0.3, 0.5],
+    "accel": [0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0],
+    "size_accel": [0.1, 0.25, 0.5, 1.0],
+    "meas": [0.03, 0.05, 0.08, 0.12],
+    "size_meas": [0.03, 0.05, 0.08, 0.12],
+    "adapt_noise": [False, True],
+    "noise_horizon": [0.5, 1.0, 2.0],
+    "camera": [True, False],
+    "match_iou": [0.05, 0.1, 0.2, 0.3, 0.4],
+    "app_weight": [0.0, 0.1, 0.3, 0.5, 1.0],
+    "app_parts": [1, 2, 3],
+    "reacquire_kl": [0.0, 0.5, 1.0, 2.0],
+    "birth_iou": [0.3, 0.5, 0.7],
+    "confirm_hits": [1, 2, 3, 4, 5],
+    "tentative_misses": [0, 1, 2],
+    "max_lost": [0.5, 1.0, 1.5, 2.0, 3.0],
+    "exit_test": [False, True],
+    "groups": [True, False],
+    "merge_iou": [0.2, 0.3, 0.5],
+    "max_group": [1.0, 3.0, 5.0],
+    "split_app": [False, True],
+    "smooth": [True, False],
+    "max_interp": [0.0, 0.25, 0.5, 1.0, 2.0],
+    "tail": [0.0, 0.25, 0.5],
+    "stitch": [False, True],
+    "max_gap": [1.0, 2.0, 3.0, 5.0],
+    "stitch_dist": [0.25, 0.5, 1.0],
+    "stitch_kl": [0.5, 1.0, 1.5, 3.0],
+    "min_life": [0.0, 0.3, 0.6, 1.0],
+    "min_track_score": [0.0, 0.7, 0.8, 0.85, 0.9],
+}
+#: settings that only matter when another one is on
+NEEDS = {"noise_horizon": ("adapt_noise", True), "merge_iou": ("groups", True), "max_group": ("groups", True), "split_app": ("groups", True),
+         "max_gap": ("stitch", True), "stitch_dist": ("stitch", True), "stitch_kl": ("stitch", True),
+         "experts_when": ("experts", lambda v: v != "det,motion")}
+
+
+#: the modules whose code decides the scores (reading files, the CLI and the video writer do not)
+SCORED = ("appearance", "association", "camera", "entry_exit", "experts", "groups", "metrics", "mot", "offline",
+          "online", "pote", "state")
+
+
+def code_hash() -> str:
+    """A hash of the tracker's source: cached scores are only reused for the same code. The
+    settings module counts only through the defaults of the settings not searched (a point sets
+    every searched one), so writing the chosen defaults into it keeps the cache."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in SCORED:
+        path = ROOT / "src" / "artmotion" / "tracking" / f"{name}.py"
+        h.update(path.name.encode() + path.read_bytes())
+    fixed = {k: v for k, v in asdict(TrackerConfig()).items() if k not in SPACE}
+    h.update(json.dumps(fixed, sort_keys=True).encode())
+    return h.hexdigest()[:12]
+
+
+#: where every search starts: textbook values (SORT/ByteTrack-like: detector and Kalman filter
+#: only, ByteTrack's score levels 0.6/0.1, IoU gate 0.2, 1 s of re-acquisition, 5 % box noise),
+#: fixed here and independent of the data, so that no fold starts from a point chosen with its
+#: held-out sequence
+START: dict = {
+    "experts": "det,motion", "experts_when": "lost", "high": 0.6, "low": 0.1, "accel": 1.0, "size_accel": 0.25,
+    "meas": 0.05, "size_meas": 0.05, "adapt_noise": False, "noise_horizon": 1.0, "camera": True, "match_iou": 0.2, "app_weight": 0.0,
+    "app_parts": 1, "reacquire_kl": 0.0, "birth_iou": 0.7, "confirm_hits": 2, "tentative_misses": 0,
+    "max_lost": 1.0, "exit_test": False, "groups": True, "merge_iou": 0.3, "max_group": 3.0, "split_app": False,
+    "smooth": True, "max_interp": 1.0, "tail": 0.0, "stitch": False, "max_gap": 2.0, "stitch_dist": 0.5,
+    "stitch_kl": 1.5, "min_life": 0.0, "min_track_score": 0.0,
+}
+
+
+def defaults() -> dict:
+    """The package's current defaults, as a point of :data:`SPACE`."""
+    cfg = asdict(TrackerConfig())
+    point = {k: cfg[k] for k in SPACE if k in cfg}
+    point["experts"] = ",".join(DEFAULT_EXPERTS)
+    return point
+
+
+def starts(n: int, seed: int = 0) -> list[dict]:
+    """:data:`START` and ``n - 1`` random points of :data:`SPACE` (a fixed seed)."""
+    rng = np.random.default_rng(seed)
+    out = [dict(START)]
+    while len(out) < n:
+        p = {k: v[int(rng.integers(len(v)))] for k, v in SPACE.items()}
+        if _valid(p):
+            out.append(p)
+    return out
+
+
+def key(point: dict) -> str:
+    return json.dumps({k: point[k] for k in sorted(point)}, sort_keys=True)
+
+
+def objective(scores: dict, seqs) -> float:
+    """Mean over ``seqs`` of (MOTA + IDF1 + HOTA) / 3."""
+    return float(np.mean([np.mean([scores[s][k] for k in KEYS]) for s in seqs]))
+
+
+# ---------------------------------------------------------------------------------------------
+# scoring (frames decoded once per sequence, inherited by the forked workers)
+# ---------------------------------------------------------------------------------------------
+_FRAMES: dict = {}
+
+
+def _load(name: str, det: str = "det.txt"):
+    if (name, det) not in _FRAMES:
+        path = SEQUENCES[name]
+        seq = open_sequence(path)
+        red = _work_reduce(seq.width, seq.height)
+        frames = list(seq.frames(reduce=red))
+        _FRAMES[(name, det)] = (seq, red, frames, load_detections(path / "det" / det), path / "gt" / "gt.txt")
+    return _FRAMES[(name, det)]
+
+
+def score_point(point: dict, names=None, det: str = "det.txt") -> dict:
+    """Per-sequence scores of the tracker with the settings ``point``."""
+    cfg_names = {f.name for f in fields(TrackerConfig)}
+    cfg = TrackerConfig(**{k: v for k, v in point.items() if k in cfg_names})
+    experts = tuple(point.get("experts", ",".join(DEFAULT_EXPERTS)).split(","))
+    out = {}
+    for name in names or SEQUENCES:
+        seq, red, frames, dets, gt = _load(name, det)
+        tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=cfg,
+                                     online=bool(point.get("online", False)))
+        t0 = time.perf_counter()
+        n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red)
+        rows, _ = tracker.finish(n)
+        seconds = time.perf_counter() - t0
+        s = evaluate(gt, rows)
+        out[name] = {k: s[k] for k in (*KEYS, "IDS", "FP", "FN")} | {"seconds": seconds}
+    return out
+
+
+def _work(point: dict) -> tuple[str, dict]:
+    return key(point), score_point(point)
+
+
+class Scorer:
+    """Scores points on all sequences, with a cache on disk and a pool of forked workers."""
+
+    def __init__(self, cache: Path, workers: int):
+        self.cache_path = cache
+        self.cache: dict[str, dict] = {}
+        if cache.is_file():
+            for line in cache.read_text().splitlines():
+                if line.strip():
+                    rec = json.loads(line)
+                    self.cache[rec["key"]] = rec["scores"]
+        for name in SEQUENCES:
+            _load(name)
+        self.pool = mp.get_context("fork").Pool(workers) if workers > 1 else None
+
+    def scores(self, points: list[dict]) -> list[dict]:
+        todo = {key(p): p for p in points if key(p) not in self.cache}
+        if todo:
+            it = self.pool.imap_unordered(_work, todo.values()) if self.pool else map(_work, todo.values())
+            self.cache_path.parent.mkdir(parents=True, exist_ok=True)
+            with open(self.cache_path, "a") as fh:
+                for k, sc in it:
+                    self.cache[k] = sc
+                    fh.write(json.dumps({"key": k, "scores": sc}) + "\n")
+                    fh.flush()
+        return [self.cache[key(p)] for p in points]
+
+    def close(self):
+        if self.pool:
+            self.pool.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# the search
+# ---------------------------------------------------------------------------------------------
+def _active(point: dict, name: str) -> bool:
+    if name not in NEEDS:
+        return True
+    other, want = NEEDS[name]
+    return want(point[other]) if callable(want) else point[other] == want
+
+
+def _valid(point: dict) -> bool:
+    return point["low"] <= point["high"]
+
+
+def coordinate_search(scorer: Scorer, train: list[str], start: dict, min_gain: float, max_passes: int = 6,
+                      log=print) -> tuple[dict, list]:
+    """Greedy coordinate ascent of :func:`objective` on ``train`` from ``start``."""
+    point = dict(start)
+    best = objective(scorer.scores([point])[0], train)
+    path = [("start", None, best)]
+    for p in range(max_passes):
+        moved = False
+        for name in SPACE:
+            if not _active(point, name):
+                continue
+            cands = [dict(point, **{name: v}) for v in SPACE[name] if v != point[name]]
+            cands = [c for c in cands if _valid(c)]
+            if not cands:
+                continue
+            objs = [objective(s, train) for s in scorer.scores(cands)]
+            i = int(np.argmax(objs))
+            if objs[i] > best + min_gain:
+                log(f"    pass {p + 1}: {name} {point[name]} -> {cands[i][name]}: {100 * best:.2f} -> {100 * objs[i]:.2f}")
+                point, best = cands[i], objs[i]
+                path.append((name, point[name], best))
+                moved = True
+        if not moved:
+            break
+    return point, path
+
+
+def held_out_table(results: dict) -> str:
+    lines = ["| held out | MOTA | IDF1 | HOTA | training objective | the fold's choice (changes from the fixed start) |",
+             "|---|---:|---:|---:|---:|---|"]
+    for name in SEQUENCES:
+        if name not in results:
+            continue
+        r = results[name]
+        s = r["held_out"]
+        lines.append(f"| {name} | {100 * s['MOTA']:.1f} | {100 * s['IDF1']:.1f} | {100 * s['HOTA']:.1f} | "
+                     f"{100 * r['train_objective']:.1f} | {r['changes'] or '(none)'} |")
+    done = [n for n in SEQUENCES if n in results]
+    if done:
+        m = {k: np.mean([results[n]["held_out"][k] for n in done]) for k in KEYS}
+        lines.append(f"| **mean** | {100 * m['MOTA']:.1f} | {100 * m['IDF1']:.1f} | {100 * m['HOTA']:.1f} | | |")
+    return "\n".join(lines)
+
+
+def changes(point: dict, base: dict) -> str:
+    return ", ".join(f"{k}={point[k]}" for k in SPACE if point.get(k) != base.get(k))
+
+
+# ---------------------------------------------------------------------------------------------
+# ablation
+# ---------------------------------------------------------------------------------------------
+def ablations(base: dict) -> list[tuple[str, dict]]:
+    """``(label, point)`` pairs: the defaults with one component switched."""
+    ex = base["experts"].split(",")
+    out = []
+    for e in ("klt", "blob", "flow", "motion"):
+        flipped = [x for x in ex if x != e] if e in ex else ex + [e]
+        out.append((f"{'without' if e in ex else 'with'} the {e} expert", dict(base, experts=",".join(flipped))))
+    if ex != ["det", "motion"]:
+        other = "all" if base["experts_when"] == "lost" else "lost"
+        out.append((f"image experts on {other} tracks", dict(base, experts_when=other)))
+    toggles = {
+        "groups": "group nodes (merge/split, Sec. 2.5.2)",
+        "smooth": "RTS smoothing (offline, Sec. 2.5.3)",
+        "stitch": "tracklet stitching (offline)",
+        "camera": "camera-motion compensation",
+        "exit_test": "appearance exit test (Sec. 2.5.4)",
+        "split_app": "appearance at group splits",
+        "adapt_noise": "noise levels estimated from the detections",
+    }
+    for k, label in toggles.items():
+        out.append((f"{'without' if base[k] else 'with'} {label}", dict(base, **{k: not base[k]})))
+    numeric = {
+        "max_interp": ("interpolation through gaps", 0.0, 1.0),
+        "min_life": ("dropping short tracks inside the image (offline)", 0.0, 0.6),
+        "app_weight": ("appearance in the association", 0.0, 0.3),
+        "reacquire_kl": ("appearance gate for re-acquiring lost tracks", 0.0, 1.0),
+        "tail": ("lost tail after the last detection", 0.0, 0.5),
+        "min_track_score": ("dropping tracks of low mean score (offline)", 0.0, 0.85),
+    }
+    for k, (label, off, on) in numeric.items():
+        out.append((f"{'without' if base[k] != off else 'with'} {label}", dict(base, **{k: off if base[k] != off else on})))
+    if base["low"] < base["high"]:
+        out.append(("without low-score detections (second stage)", dict(base, low=base["high"])))
+    else:
+        out.append(("with low-score detections (second stage, low=0.1)", dict(base, low=0.1)))
+    out.append(("online: no offline pass (causal results)", dict(base, online=True)))
+    if base["confirm_hits"] > 1:
+        out.append(("without confirmation (every detection a track)", dict(base, confirm_hits=1)))
+    return out
+
+
+def ablation_table(scorer: Scorer, base: dict) -> str:
+    names = list(SEQUENCES)
+    rows = [("**defaults**", base)] + ablations(base)
+    scores = scorer.scores([p for _, p in rows])
+    lines = ["| variant | MOTA | IDF1 | HOTA | objective | " + " | ".join(f"{n} HOTA" for n in names) + " |",
+             "|---|---:|---:|---:|---:|" + "---:|" * len(names)]
+    b = objective(scores[0], names)
+    for (label, _), s in zip(rows, scores):
+        m = {k: np.mean([s[n][k] for n in names]) for k in KEYS}
+        o = objective(s, names)
+        delta = "" if label.startswith("**") else f" ({100 * (o - b):+.1f})"
+        lines.append(f"| {label} | {100 * m['MOTA']:.1f} | {100 * m['IDF1']:.1f} | {100 * m['HOTA']:.1f} | "
+                     f"{100 * o:.1f}{delta} | " + " | ".join(f"{100 * s[n]['HOTA']:.1f}" for n in names) + " |")
+    return "\n".join(lines)
+
+
+def run(cache: str | None = None, workers: int = 2, folds: str | None = None, min_gain: float = 0.001,
+        out_json: str | None = None, restarts: int = 3, log=print) -> dict:
+    """Run the folds, then the ablation of the ``all`` fold's choice; return (and save as JSON)
+    ``{fold: {point, changes, path, train_objective, held_out, scores}, "ablation": table}``.
+    Each fold runs the coordinate search from :func:`starts` (``restarts`` points) and keeps the
+    end point with the best training objective."""
+    cache = Path(cache or ROOT / "out" / f"tracking_loo-{code_hash()}.jsonl")
+    out_json = Path(out_json or cache.with_suffix(".json"))
+    scorer = Scorer(cache, workers)
+    start_points = starts(restarts)
+    results: dict = {}
+    try:
+        for fold in (folds or "all," + ",".join(SEQUENCES)).split(","):
+            train = [n for n in SEQUENCES if n != fold]
+            log(f"fold {fold}: choosing on {', '.join(train)}")
+            ends = []
+            for k, start in enumerate(start_points):
+                log(f"  start {k}")
+                point, path = coordinate_search(scorer, train, start, min_gain, log=log)
+                ends.append((objective(scorer.scores([point])[0], train), k, point, path))
+            _, k, point, path = max(ends, key=lambda e: (e[0], -e[1]))
+            log(f"  chosen: the end of start {k}")
+            all_scores = scorer.scores([point])[0]
+            results[fold] = {"point": point, "changes": changes(point, START), "path": path, "start": k,
+                             "train_objective": objective(all_scores, train),
+                             "held_out": all_scores.get(fold), "scores": all_scores}
+            if fold in SEQUENCES:
+                s = all_scores[fold]
+                log(f"  held out {fold}: MOTA {100 * s['MOTA']:.1f} IDF1 {100 * s['IDF1']:.1f} HOTA {100 * s['HOTA']:.1f}")
+        base = results["all"]["point"] if "all" in results else START
+        results["ablation"] = ablation_table(scorer, base)
+    finally:
+        scorer.close()
+    out_json.parent.mkdir(parents=True, exist_ok=True)
+    out_json.write_text(json.dumps(results, indent=1, default=float))
+    return results
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cache", default=None,
+                    help="scores of every configuration tried (default: out/tracking_loo-<hash of the tracker's code>.jsonl)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--folds", default=None, help="comma-separated: all and/or sequence names (default: all of them)")
+    ap.add_argument("--min-gain", type=float, default=0.001, help="smallest objective gain a move needs")
+    ap.add_argument("--restarts", type=int, default=3, help="coordinate searches per fold (the fixed start and random ones)")
+    args = ap.parse_args(argv)
+    results = run(args.cache, args.workers, args.folds, args.min_gain, restarts=args.restarts,
+                  log=lambda m: print(m, flush=True))
+    print(held_out_table({k: v for k, v in results.items() if k in SEQUENCES}))
+    print(results["ablation"])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,146 @@
+"""The tracking API: :func:`track` a sequence, :func:`run_tracker` on frames already decoded."""
+
+from __future__ import annotations
+
+import math
+import time
+from contextlib import closing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from artmotion.errors import InputError
+from artmotion.tracking.config import TrackerConfig
+from artmotion.tracking.experts import EXPERTS
+from artmotion.tracking.mot import MultiObjectTracker
+from artmotion.tracking.sequence import Sequence, open_sequence
+
+__all__ = ["DEFAULT_EXPERTS", "TrackResult", "run_tracker", "track"]
+
+DEFAULT_EXPERTS = ("det", "motion")
+
+
+@dataclass
+class TrackResult:
+    """What :func:`track` returns.
+
+    ``tracks``: ``(N, 10)`` MOTChallenge rows ``frame, id, x, y, w, h, conf, -1, -1, -1``;
+    ``events``: event dicts (docs/interfaces.md); ``fps``: processing speed (frames per second of
+    the whole run); ``frames``: frames processed; ``seconds``: wall time; ``sequence``: the
+    :class:`Sequence`; ``detector``: where detections came from.
+    """
+
+    tracks: np.ndarray
+    events: list
+    fps: float
+    frames: int = 0
+    seconds: float = 0.0
+    sequence: Sequence | None = None
+    detector: str = ""
+    experts: tuple = field(default_factory=tuple)
+
+    @property
+    def num_tracks(self) -> int:
+        return int(len(np.unique(self.tracks[:, 1]))) if len(self.tracks) else 0
+
+
+def _work_reduce(width: int, height: int) -> int:
+    """How many times smaller (1, 2, 4 or 8) the images the tracker looks at are than the frames:
+    the largest power of two that keeps at least 240 pixels on the short side."""
+    k = 1
+    while k < 8 and min(width, height) / (2 * k) >= 240:
+        k *= 2
+    return k
+
+
+def _check_experts(experts) -> tuple:
+    if isinstance(experts, str):
+        experts = [e.strip() for e in experts.split(",") if e.strip()]
+    experts = tuple(experts)
+    if not experts:
+        raise InputError("no experts given")
+    for e in experts:
+        if e not in EXPERTS:
+            raise InputError(f"unknown expert {e!r} (choose from {', '.join(sorted(EXPERTS))})")
+    if len(set(experts)) != len(experts):
+        raise InputError("an expert is listed twice")
+    if "det" not in experts:
+        raise InputError("the 'det' expert is needed: tracks start from detections (thesis Sec. 2.5.1)")
+    return experts
+
+
+def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: int = 1, decode: int = 1,
+                detector=None, on_frame=None) -> int:
+    """Feed ``frames`` (``(number, BGR image)`` pairs, decoded ``decode`` times smaller than the
+    sequence) to ``tracker`` one by one; the experts look at images ``reduce`` times smaller.
+    Detections come from ``detections`` (frame -> ``(N, 5)`` array) or, when ``detector`` is
+    given, from running it on every frame. Returns the number of the last frame."""
+    from artmotion.tracking.experts import Frame
+
+    shared: dict = {}
+    n = 0
+    for n, img in frames:
+        d = detector(img) if detector is not None else detections.get(n)
+        tracker.step(Frame(n, img, d, scale=1.0 / reduce, shared=shared, image_scale=1.0 / decode))
+        if on_frame is not None:
+            on_frame(1)
+    return n
+
+
+def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progress: bool = False,
+          video=None, config: TrackerConfig | None = None, fps: float | None = None) -> TrackResult:
+    """Track people in ``source`` (MOTChallenge folder, video file or image folder).
+
+    ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
+    built-in HOG people detector runs on every frame. ``experts``: names of the tracking experts
+    (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
+    interpolation or tentative beginnings). ``progress``: a progress bar on stderr.
+    ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
+    say it (a folder of images; else 25 is assumed) or says it wrong.
+    """
+    from artmotion.tracking.detect import HOGPeopleDetector, load_detections
+
+    experts = _check_experts(experts)
+    seq = open_sequence(source)
+    if fps is not None:
+        if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= 1000):
+            raise InputError(f"frame rate must be in (0, 1000] frames/s, got {fps!r}")
+        seq.fps, seq.fps_known = float(fps), True
+    det_path = Path(det) if det is not None else seq.det_path
+    detector = None
+    if det_path is not None:
+        dets, source_name = load_detections(det_path), str(det_path)
+        if dets and max(dets) > seq.length and seq.images is not None:
+            raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
+                             path=det_path)
+    else:
+        detector, dets, source_name = HOGPeopleDetector(), {}, "hog"
+    tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config, online=online)
+    reduce = _work_reduce(seq.width, seq.height)
+    # the tracker only looks at the reduced images; a detector needs the whole frame
+    decode = 1 if detector is not None else reduce
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=seq.length, unit="frame", desc=seq.name, leave=False)
+    t0 = time.perf_counter()
+    try:
+        with closing(seq.frames(reduce=decode)) as frames:
+            n = run_tracker(tracker, frames, dets, reduce=reduce, decode=decode, detector=detector,
+                            on_frame=bar.update if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    if n == 0:
+        raise InputError("no frames", path=seq.path)
+    if dets and max(dets) > n:
+        raise InputError(f"detections for frame {max(dets)} but the sequence has {n} frames", path=det_path)
+    rows, events = tracker.finish(n)
+    seconds = time.perf_counter() - t0
+    if video is not None:
+        from artmotion.tracking.video import write_annotated
+        with closing(seq.frames()) as frames:
+            write_annotated(video, frames, rows, seq.fps, (seq.width, seq.height), events=events)
+    return TrackResult(rows, events, fps=n / seconds if seconds > 0 else float("inf"), frames=n,
+                       seconds=seconds, sequence=seq, detector=source_name, experts=experts)

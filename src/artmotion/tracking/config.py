@@ -1,0 +1,68 @@
+"""Settings of the multi-object tracker, one set for every sequence.
+
+Times are in seconds and sizes relative to boxes, so that the same settings hold at 7 and at 30
+frames per second and at 640×480 and 1920×1080. The defaults were chosen by leave-one-sequence-out
+over the five shared sequences (docs/tracking.md, ``benchmarks/tracking_loo.py``); every
+component that is off by default is off because the ablation showed it does not raise the mean.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+__all__ = ["TrackerConfig"]
+
+
+@dataclass
+class TrackerConfig:
+    """Settings of :class:`~artmotion.tracking.mot.MultiObjectTracker`."""
+
+    # -- detections (Sec. 2.4.1) -------------------------------------------------------------
+    high: float = 0.6           #: score of a detection in the first association stage and for a birth
+    low: float = 0.1            #: lowest score used at all (second stage: only for tracks seen last frame)
+    # -- state (Sec. 2.5.1, Eq. 2.10) ---------------------------------------------------------
+    accel: float = 1.0          #: acceleration std of the centre, box sizes per s²
+    size_accel: float = 0.25    #: acceleration std of width/height, box sizes per s²
+    meas: float = 0.05          #: a detection's centre std, relative to the box size
+    size_meas: float = 0.05     #: a detection's width/height std, relative to the box size
+    adapt_noise: bool = True    #: estimate both noises from the detections (accel, meas: their priors)
+    noise_horizon: float = 1.0  #: seconds over which the estimated acceleration is measured
+    camera: bool = True         #: estimate and compensate the camera's motion (camera.py)
+    # -- association (Eq. 2.4 with a one-to-one assignment) -----------------------------------
+    match_iou: float = 0.2      #: IoU gate between a predicted box and a detection
+    app_weight: float = 0.0     #: weight of the histograms' KL divergence next to 1 - IoU
+    reacquire_kl: float = 0.0   #: a lost track is re-acquired only by a detection within this KL (0: any)
+    app_parts: int = 1          #: horizontal bands of a box with histograms of their own (2: upper body, legs)
+    # -- births and deaths (Sec. 2.5.4) ------------------------------------------------------
+    birth_iou: float = 0.7      #: no new track on a detection overlapping a live track this much
+    confirm_hits: int = 2       #: detections that confirm a tentative track
+    tentative_misses: int = 0   #: misses a tentative track survives
+    max_lost: float = 1.0       #: seconds an unmatched confirmed track is kept for re-acquisition
+    exit_test: bool = False     #: end a lost track early when the appearance test says it left (Sec. 2.5.4)
+    exit_kl: float = 1.0        #: KL divergence at which a lost box no longer shows the entity
+    # -- groups (Sec. 2.5.2) -----------------------------------------------------------------
+    groups: bool = True         #: occlusion groups (merge/split events; members kept while hidden)
+    merge_iou: float = 0.3      #: Eq. 2.11 overlap that detects an occlusion
+    join_ratio: float = 0.5     #: Eq. 2.12 share of a track inside a group that makes it join
+    max_group: float = 3.0      #: seconds a hidden member is kept in its group
+    split_app: bool = False     #: re-solve the members' identities by appearance when they reappear
+    # -- image experts (Sec. 2.4.2-2.4.5) ----------------------------------------------------
+    experts_when: str = "lost"  #: which tracks the image experts predict: "all", "lost" or "none"
+    # -- offline pass (Sec. 2.5.3) -----------------------------------------------------------
+    smooth: bool = True         #: RTS smoothing of each track (offline); else the filtered boxes
+    max_interp: float = 1.0     #: seconds of a gap between detections filled by the smoother
+    tail: float = 0.0           #: seconds of lost tail reported after the last detection
+    stitch: bool = False        #: join tracklets that motion and appearance connect across a gap
+    max_gap: float = 2.0        #: seconds across which tracklets may be stitched
+    stitch_dist: float = 0.5    #: stitching tolerance: box heights, plus ...
+    stitch_speed: float = 0.5   #: ... box heights per second of gap
+    stitch_kl: float = 1.5      #: largest KL divergence of the histograms of stitched tracklets
+    min_life: float = 0.0       #: offline: a track shorter than this that appears and vanishes inside the image is dropped
+    min_track_score: float = 0.0  #: offline: a track whose detections score less than this on average is dropped
+    # -- online output and events ------------------------------------------------------------
+    online_coast: float = 0.0   #: seconds an online result keeps reporting a lost track
+    split_hold: float = 0.3     #: seconds a split must hold; a re-merge within it continues the group
+
+    @classmethod
+    def names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]

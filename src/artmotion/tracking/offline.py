@@ -1,0 +1,189 @@
+"""The offline pass (thesis Sec. 2.5.3): trajectories through the gaps, once the sequence is over.
+
+Online, a track's box on a frame is what its filter knew then. Offline, every frame of a track
+can use the whole track: the **Rauch–Tung–Striebel smoother** runs each track's Kalman filter
+(:mod:`~artmotion.tracking.state`) backwards over the history the online pass kept (predicted and
+filtered states, camera warps). Between two detections the smoothed state is the constant-velocity
+interpolation of Sec. 2.5.3 (Fig. 2.6) — through a group node, a missed detection or an occlusion
+— weighted by how certain each end is; on detected frames it removes the detector's per-frame
+jitter without lagging. Gaps longer than ``max_interp`` seconds are not filled (the person may
+have gone anywhere).
+
+**Stitching** (optional) joins a tracklet that ends and one that starts within ``max_gap``
+seconds when the constant-velocity extrapolation meets the new start, the sizes agree and the
+colour histograms are close (Sec. 2.5.3-2.5.4); a gap of at most ``max_interp`` seconds is
+interpolated linearly, a longer one only joins the identities (as inside a track).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from artmotion.geometry import box_center, box_from_center
+from artmotion.tracking.appearance import kl_divergence
+from artmotion.tracking.state import DETECTED, GROUP, INTERPOLATED, TENTATIVE, z_to_boxes
+
+__all__ = ["rts_smooth", "stitch", "track_pieces"]
+
+
+def _transition(dt: float) -> np.ndarray:
+    F = np.eye(8)
+    F[np.arange(4), np.arange(4) + 4] = dt
+    return F
+
+
+def rts_smooth(xp, Pp, xf, Pf, warps, dt: float) -> np.ndarray:
+    """Rauch–Tung–Striebel smoothed states ``(K, 8)`` of one track's filter history.
+
+    ``xp, Pp``: predicted state and covariance on each frame (the first is the initial state),
+    ``xf, Pf``: filtered ones, ``warps``: the 8×8 camera transform applied before each prediction
+    (``None``: none). The transition into frame ``k`` is ``F T_k``.
+    """
+    xp, Pp, xf, Pf = (np.asarray(a, dtype=float) for a in (xp, Pp, xf, Pf))
+    K = len(xf)
+    xs = xf.copy()
+    if K < 2:
+        return xs
+    F = _transition(dt)
+    Fk = np.broadcast_to(F, (K - 1, 8, 8)).copy()
+    for k, T in enumerate(warps[1:]):
+        if T is not None:
+            Fk[k] = F @ T
+    # C_k = Pf_k F_{k+1}' Pp_{k+1}^-1, all at once; then the backward recursion on the means
+    G = np.einsum("kij,kjl->kil", Fk, Pf[:-1])                     # F_{k+1} Pf_k
+    Pp1 = Pp[1:] + 1e-9 * np.eye(8)
+    C = np.linalg.solve(Pp1, G).transpose(0, 2, 1)
+    for k in range(K - 2, -1, -1):
+        xs[k] = xf[k] + C[k] @ (xs[k + 1] - xp[k + 1])
+    return xs
+
+
+def _boxes(x: np.ndarray) -> np.ndarray:
+    z = x[:, :4].copy()
+    z[:, 2:4] = np.maximum(z[:, 2:4], 1.0)
+    return z_to_boxes(z)
+
+
+def track_pieces(track, dt: float, smooth: bool, max_interp: int, tail: int) -> dict:
+    """A track's output: ``{frame: [box, kind, score]}``.
+
+    Frames with a detection (before and after confirmation), gaps between detections of at most
+    ``max_interp`` frames (smoothed, or linearly interpolated without ``smooth``), and up to
+    ``tail`` frames after the last detection.
+    """
+    kinds = np.asarray(track.kinds)
+    detected = np.flatnonzero((kinds == DETECTED) | (kinds == TENTATIVE))
+    if not len(detected):
+        return {}
+    last = int(detected[-1])
+    frames = track.frames
+    if smooth:
+        end = min(len(frames), last + 1 + tail)
+        xs = rts_smooth(track.xp[:end], track.Pp[:end], track.xf[:end], track.Pf[:end], track.warps[:end], dt)
+        boxes = _boxes(xs)
+    else:
+        boxes = _boxes(np.asarray(track.xf))
+    out = {}
+    for k in detected:
+        out[frames[k]] = [boxes[k], int(kinds[k]), track.scores[k]]
+    for a, b in zip(detected[:-1], detected[1:]):
+        if b - a <= 1 or b - a - 1 > max_interp:
+            continue
+        for k in range(a + 1, b):
+            if smooth:
+                box = boxes[k]
+            else:
+                u = (k - a) / (b - a)
+                box = (1 - u) * boxes[a] + u * boxes[b]
+            out[frames[k]] = [box, int(kinds[k]) if kinds[k] == GROUP else INTERPOLATED, 0.0]
+    for k in range(last + 1, min(len(frames), last + 1 + tail)):
+        out[frames[k]] = [boxes[k], int(kinds[k]), 0.0]
+    return out
+
+
+def _end_state(rec: dict, at_start: bool, k: int):
+    """Frame, position, velocity (px/frame) and size at one end of a tracklet, from its detections."""
+    fs = sorted(f for f in rec if rec[f][1] in (DETECTED, TENTATIVE)) or sorted(rec)
+    fs = fs[:k] if at_start else fs[-k:]
+    cs = np.array([box_center(rec[f][0]) for f in fs])
+    f_end = fs[0] if at_start else fs[-1]
+    v = (cs[-1] - cs[0]) / (fs[-1] - fs[0]) if len(fs) >= 2 and fs[-1] > fs[0] else np.zeros(2)
+    sizes = np.array([rec[f][0][2:4] for f in fs])
+    return f_end, box_center(rec[f_end][0]), v, np.median(sizes, axis=0)
+
+
+def _interpolate(rec: dict, a: int, b: int) -> None:
+    ca, cb = box_center(rec[a][0]), box_center(rec[b][0])
+    sa, sb = rec[a][0][2:4], rec[b][0][2:4]
+    for f in range(a + 1, b):
+        u = (f - a) / (b - a)
+        rec[f] = [box_from_center((1 - u) * ca + u * cb, (1 - u) * sa + u * sb), INTERPOLATED, 0.0]
+
+
+def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict]:
+    """Join tracklets of one person across a gap (motion and appearance agree), Sec. 2.5.3-2.5.4.
+
+    Returns ``(pieces, relabel, span)``: the joined pieces, ``relabel`` (tracker id of a joined
+    tracklet -> id of the tracklet it continues) and ``span`` (tracker id -> frames it gives the
+    output). A tracklet ending at frame ``a`` and one starting at ``b > a`` within ``max_gap``
+    seconds are the same person when the constant-velocity extrapolation meets the new start
+    within a distance that grows with the gap, the box sizes agree and the RGB histograms are
+    close (KL divergence).
+    """
+    span = {i: (min(r), max(r)) for i, r in pieces.items() if r}
+    relabel: dict[int, int] = {}
+    if not cfg.stitch or len(pieces) < 2:
+        return pieces, relabel, span
+    k = max(2, int(round(0.5 * fps)))
+    max_gap = max(1, int(round(cfg.max_gap * fps)))
+    max_fill = int(round(cfg.max_interp * fps)) if cfg.max_interp > 0 else 0
+    starts = {j: _end_state(r, True, k) for j, r in pieces.items()}
+    cand = []
+    for i, ri in pieces.items():
+        fa, ca, va, sa = _end_state(ri, False, k)
+        for j in pieces:
+            if i == j or span[j][0] <= span[i][1]:
+                continue
+            fb, cb, _, sb = starts[j]
+            gap = fb - fa
+            if gap < 1 or gap > max_gap or not 0.67 < sb[1] / sa[1] < 1.5:
+                continue
+            h = 0.5 * (sa[1] + sb[1])
+            tol = h * (cfg.stitch_dist + cfg.stitch_speed * gap / fps)
+            d = float(np.linalg.norm(ca + va * gap - cb))
+            kl = kl_divergence(hists.get(i), hists.get(j))
+            if d > tol or not kl <= cfg.stitch_kl:
+                continue
+            cand.append((d / tol + kl / cfg.stitch_kl, i, j))
+    cand.sort()
+    nxt: dict[int, int] = {}
+    prv: dict[int, int] = {}
+    for _, i, j in cand:
+        if i in nxt or j in prv:
+            continue
+        q = j
+        while q in nxt:
+            q = nxt[q]
+        if q == i:
+            continue
+        nxt[i], prv[j] = j, i
+    out = {}
+    for i in pieces:
+        if i in prv:
+            continue
+        rec = dict(pieces[i])
+        q = i
+        while q in nxt:
+            j = nxt[q]
+            fa = _end_state(rec, False, k)[0]
+            fb = _end_state(pieces[j], True, k)[0]
+            rec = {f: v for f, v in rec.items() if f <= fa}
+            rec.update({f: v for f, v in pieces[j].items() if f >= fb})
+            span[q] = (span[q][0], fb - 1)
+            span[j] = (fb, span[j][1])
+            if fb - fa - 1 <= max_fill:
+                _interpolate(rec, fa, fb)
+            relabel[j] = i
+            q = j
+        out[i] = rec
+    return out, relabel, span

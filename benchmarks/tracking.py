@@ -179,6 +179,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks.md"), help="markdown report ('-': none)")
     ap.add_argument("--no-speed", action="store_true", help="skip the decode-floor measurement")
     ap.add_argument("--no-loo", action="store_true", help="skip the leave-one-out search and the ablation")
+    ap.add_argument("--loo-folds", default=None, help="folds of the leave-one-out search (default: all and every sequence)")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT / "src"))
     from artmotion.io import atomic_write
@@ -279,18 +280,18 @@ every frame at full size (`cv2.imread` / `VideoCapture.read`). Best of three run
         replace_block(ROOT / "docs" / "tracking.md", "tracking-benchmark", block)
         print(f"written: {args.out} and docs/tracking.md", file=sys.stderr)
     if not args.no_loo:
-        loo_and_ablation(write=args.out != "-")
+        loo_and_ablation(write=args.out != "-", folds=args.loo_folds)
     return 0
 
 
-def loo_and_ablation(write: bool) -> None:
+def loo_and_ablation(write: bool, folds: str | None = None) -> None:
     """The leave-one-out choice of settings and the ablation (benchmarks/tracking_loo.py; scores
     are cached per version of the tracker's code, so a re-run only computes what changed)."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import tracking_loo
 
-    results = tracking_loo.run()
-    loo = tracking_loo.held_out_table({k: v for k, v in results.items() if k in tracking_loo.SEQUENCES})
+    results = tracking_loo.run(folds=folds)
+    loo = tracking_loo.held_out_table(results)
     print(loo)
     print(results["ablation"])
     if write:

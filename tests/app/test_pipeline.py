@@ -65,7 +65,7 @@ def test_report_renders_in_headless_chromium(sample_run, tmp_path):
     assert dom.count("<tr>") >= len(run["sentences"]) + 1
     assert 'id="metrics-table"' in dom and "MOTA" in dom and "<svg" in dom
     shot = tmp_path / "report.png"
-    subprocess.run(flags + [f"--screenshot={shot}", "--window-size=1000,2600", report.as_uri()],
+    subprocess.run(flags + [f"--screenshot={shot}", "--window-size=1000,4000", report.as_uri()],
                    capture_output=True, timeout=120)
     img = cv2.imread(str(shot))
     assert img is not None and img.shape[1] == 1000

@@ -144,6 +144,13 @@ def run_pipeline(
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     kwargs = {"det": det, "progress": progress}
+    if object_class != "person":
+        # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
+        # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and
+        # noise levels estimated from its own detections.
+        from artmotion.tracking import TrackerConfig
+
+        kwargs["config"] = TrackerConfig.textbook(adapt_noise=True)
     if experts is not None:
         kwargs["experts"] = experts
     if video:

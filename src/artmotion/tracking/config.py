@@ -18,26 +18,26 @@ class TrackerConfig:
     """Settings of :class:`~artmotion.tracking.mot.MultiObjectTracker`."""
 
     # -- detections (Sec. 2.4.1) -------------------------------------------------------------
-    high: float = 0.6           #: score of a detection in the first association stage and for a birth
+    high: float = 0.5           #: score of a detection in the first association stage and for a birth
     low: float = 0.1            #: lowest score used at all (second stage: only for tracks seen last frame)
     # -- state (Sec. 2.5.1, Eq. 2.10) ---------------------------------------------------------
-    accel: float = 1.0          #: acceleration std of the centre, box sizes per s²
-    size_accel: float = 0.25    #: acceleration std of width/height, box sizes per s²
-    meas: float = 0.05          #: a detection's centre std, relative to the box size
+    accel: float = 0.5          #: acceleration std of the centre, box sizes per s²
+    size_accel: float = 0.1     #: acceleration std of width/height, box sizes per s²
+    meas: float = 0.08          #: a detection's centre std, relative to the box size
     size_meas: float = 0.05     #: a detection's width/height std, relative to the box size
     adapt_noise: bool = True    #: estimate both noises from the detections (accel, meas: their priors)
     noise_horizon: float = 1.0  #: seconds over which the estimated acceleration is measured
     camera: bool = True         #: estimate and compensate the camera's motion (camera.py)
     # -- association (Eq. 2.4 with a one-to-one assignment) -----------------------------------
     match_iou: float = 0.2      #: IoU gate between a predicted box and a detection
-    app_weight: float = 0.0     #: weight of the histograms' KL divergence next to 1 - IoU
+    app_weight: float = 0.1     #: weight of the histograms' KL divergence next to 1 - IoU
     reacquire_kl: float = 0.0   #: a lost track is re-acquired only by a detection within this KL (0: any)
     app_parts: int = 1          #: horizontal bands of a box with histograms of their own (2: upper body, legs)
     # -- births and deaths (Sec. 2.5.4) ------------------------------------------------------
     birth_iou: float = 0.7      #: no new track on a detection overlapping a live track this much
     confirm_hits: int = 2       #: detections that confirm a tentative track
     tentative_misses: int = 0   #: misses a tentative track survives
-    max_lost: float = 1.0       #: seconds an unmatched confirmed track is kept for re-acquisition
+    max_lost: float = 1.5       #: seconds an unmatched confirmed track is kept for re-acquisition
     exit_test: bool = False     #: end a lost track early when the appearance test says it left (Sec. 2.5.4)
     exit_kl: float = 1.0        #: KL divergence at which a lost box no longer shows the entity
     # -- groups (Sec. 2.5.2) -----------------------------------------------------------------
@@ -57,7 +57,7 @@ class TrackerConfig:
     stitch_dist: float = 0.5    #: stitching tolerance: box heights, plus ...
     stitch_speed: float = 0.5   #: ... box heights per second of gap
     stitch_kl: float = 1.5      #: largest KL divergence of the histograms of stitched tracklets
-    min_life: float = 0.0       #: offline: a track shorter than this that appears and vanishes inside the image is dropped
+    min_life: float = 0.6       #: offline: a track shorter than this that appears and vanishes inside the image is dropped
     min_track_score: float = 0.0  #: offline: a track whose detections score less than this on average is dropped
     # -- online output and events ------------------------------------------------------------
     online_coast: float = 0.0   #: seconds an online result keeps reporting a lost track
@@ -66,3 +66,18 @@ class TrackerConfig:
     @classmethod
     def names(cls) -> list[str]:
         return [f.name for f in fields(cls)]
+
+    @classmethod
+    def textbook(cls, **changes) -> TrackerConfig:
+        """Settings that depend on no data: SORT/ByteTrack-like textbook values (ByteTrack's score
+        levels 0.6/0.1, an IoU gate of 0.2, 1 s of re-acquisition, 5 % box noise, no appearance,
+        no offline filtering of tracks). The leave-one-out search starts here; objects other than
+        people, which the defaults were not chosen on, are tracked with these and the noise
+        levels estimated from their own detections (``adapt_noise=True``)."""
+        base = dict(high=0.6, low=0.1, accel=1.0, size_accel=0.25, meas=0.05, size_meas=0.05, adapt_noise=False,
+                    noise_horizon=1.0, camera=True, match_iou=0.2, app_weight=0.0, app_parts=1, reacquire_kl=0.0,
+                    birth_iou=0.7, confirm_hits=2, tentative_misses=0, max_lost=1.0, exit_test=False, groups=True,
+                    merge_iou=0.3, max_group=3.0, split_app=False, experts_when="lost", smooth=True,
+                    max_interp=1.0, tail=0.0, stitch=False, max_gap=2.0, stitch_dist=0.5, stitch_kl=1.5,
+                    min_life=0.0, min_track_score=0.0)
+        return cls(**(base | changes))

@@ -59,7 +59,19 @@ def _terminate(signum, frame):
 _KEPT = "outputs finished before it are complete; nothing half-written was kept"
 
 
+def _release_process_resources() -> None:
+    """Before ``os._exit``: unlink the semaphores of multiprocessing (a batch's local cluster
+    interrupted while starting), which its resource tracker would otherwise report as leaked."""
+    mp_util = sys.modules.get("multiprocessing.util")
+    if mp_util is not None:
+        try:
+            mp_util._run_finalizers(0)
+        except Exception:       # best effort: the process ends next
+            pass
+
+
 def _fail(message: str, code: int) -> int:
+    message = " ".join(part.strip() for part in message.splitlines() if part.strip())   # always one line
     print(f"artmotion: {message}", file=sys.stderr)
     return code
 
@@ -70,13 +82,26 @@ def main(argv: list[str] | None = None) -> int:
     Every failure is one line on stderr: bad input (:class:`ArtmotionError`, a usage error, an
     operating-system error such as a full disk) exits with 2; Ctrl-C with 130 and SIGTERM with 143,
     after the outputs being written were removed; anything else is a bug (exit 1, with a hint).
-    ``ARTMOTION_DEBUG=1`` shows tracebacks.
+    Python's warnings (a library's RuntimeWarning) are not shown: inputs and results are checked.
+    ``ARTMOTION_DEBUG=1`` shows tracebacks and warnings.
     """
+    import warnings
+
+    with warnings.catch_warnings():
+        if not os.environ.get("ARTMOTION_DEBUG") and not sys.warnoptions:
+            warnings.simplefilter("ignore")
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     import signal
 
     import click
 
+    from artmotion._native import quiet_native_logs
+
     debug = bool(os.environ.get("ARTMOTION_DEBUG"))
+    quiet_native_logs()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         try:
@@ -111,12 +136,13 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"interrupted: {_KEPT}", 130)
     except Interrupted as exc:
         what = "interrupted" if exc.signum == signal.SIGINT else f"terminated by signal {exc.signum}"
-        _fail(f"{what}: {_KEPT}", 0)
+        _fail(f"{what}: {exc.kept or _KEPT}", 0)
         # The outputs were cleaned up while unwinding. The process was asked to end: end it now,
         # without the interpreter's teardown, where a decoder or encoder thread of OpenCV that
         # the signal caught mid-start can abort the process (exit -6 instead of 128 + signal).
         sys.stdout.flush()
         sys.stderr.flush()
+        _release_process_resources()
         os._exit(128 + exc.signum)
     except Exception as exc:  # a bug: still one line, unless debugging
         if debug:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 
 
@@ -33,6 +35,46 @@ class Interrupted(BaseException):
     command line's signal handlers so that every ``finally`` runs and temporary outputs are
     removed. Not an :class:`Exception`: nothing catches it by accident."""
 
-    def __init__(self, signum: int):
+    def __init__(self, signum: int, kept: str | None = None):
         super().__init__(signum)
         self.signum = signum
+        #: what the interrupted command kept, said on the one line it prints (else a general note)
+        self.kept = kept
+
+
+#: largest seed NumPy's legacy generators and scikit-learn accept (``[0, 2**32 - 1]``)
+MAX_SEED = 2**32 - 1
+
+
+def _interval(lo, hi, lo_open: bool, hi_open: bool) -> str:
+    def fmt(v):
+        return f"{v:g}" if isinstance(v, float) else str(v)
+
+    return f"{'(' if lo_open else '['}{fmt(lo)}, {fmt(hi)}{')' if hi_open else ']'}"
+
+
+def check_range(name: str, value, lo, hi, *, lo_open: bool = False, hi_open: bool = False,
+                integer: bool = False, path: str | os.PathLike | None = None, line: int | None = None):
+    """``value`` if it is a finite number (a whole one with ``integer``) in the interval from
+    ``lo`` to ``hi`` (ends closed unless ``lo_open``/``hi_open``); else an :class:`InputError`
+    that names ``name`` and the interval, e.g. ``--fps must be a number in [0.001, 1000], got inf``.
+
+    Booleans and strings are not numbers. For command-line options, numeric fields of files
+    (``path``/``line`` name where) and model parameters alike."""
+    kind = "a whole number" if integer else "a number"
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        raise InputError(f"{name} must be {kind} in {_interval(lo, hi, lo_open, hi_open)}, got {value!r}",
+                         path=path, line=line)
+    value = value.item() if hasattr(value, "item") else value        # a NumPy scalar
+    if (not math.isfinite(value) or (integer and value != int(value))
+            or (value <= lo if lo_open else value < lo) or (value >= hi if hi_open else value > hi)):
+        raise InputError(f"{name} must be {kind} in {_interval(lo, hi, lo_open, hi_open)}, got {value:g}"
+                         if isinstance(value, float) else
+                         f"{name} must be {kind} in {_interval(lo, hi, lo_open, hi_open)}, got {value}",
+                         path=path, line=line)
+    return int(value) if integer else value
+
+
+def check_seed(seed, name: str = "--seed") -> int:
+    """A random seed as NumPy and scikit-learn take it: a whole number in ``[0, 2**32 - 1]``."""
+    return check_range(name, seed, 0, MAX_SEED, integer=True)

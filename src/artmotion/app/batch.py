@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from artmotion.app.pipeline import is_finished
 from artmotion.errors import ArtmotionError, InputError, Interrupted
 from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS
 
@@ -65,10 +66,28 @@ def _check_scheduler(address: str) -> None:
         raise InputError(f"not a Dask scheduler address ({exc}); give tcp://HOST:PORT", path=address) from None
 
 
+#: how long a batch waits for a scheduler that does not answer
+CONNECT_TIMEOUT = 5.0
+
+
+def _connect(address: str):
+    """A client of the Dask scheduler at ``address``; one :class:`InputError` naming it when
+    nothing answers there within :data:`CONNECT_TIMEOUT` seconds or what answers is no Dask
+    scheduler (whatever the error Dask's connection code raises for it)."""
+    from dask.distributed import Client
+
+    try:
+        return Client(address, timeout=f"{CONNECT_TIMEOUT:g}s")
+    except Exception as exc:        # refused, timed out, garbage from another kind of server
+        first = (str(exc).strip().splitlines() or [""])[0][:200]
+        raise InputError(f"cannot reach a Dask scheduler there ({type(exc).__name__}{': ' + first if first else ''})",
+                         path=address) from None
+
+
 def _start_local_cluster(workers: int, processes: bool):
-    """A local Dask cluster whose worker processes ignore the terminal's Ctrl-C (SIGINT is
-    blocked while they start, and they inherit the mask): only this process reacts to it, stops
-    the batch and closes them."""
+    """A local Dask cluster whose worker processes ignore the terminal's Ctrl-C (they preload
+    :mod:`artmotion.app._dask_worker`; SIGINT is held back here while they start): only this
+    process reacts to it, stops the batch and closes them."""
     import signal
 
     from dask.distributed import LocalCluster
@@ -76,12 +95,33 @@ def _start_local_cluster(workers: int, processes: bool):
     blocked = processes and hasattr(signal, "pthread_sigmask")
     if blocked:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    cluster = None
     try:
-        return LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
-                            dashboard_address=None, silence_logs=40)
+        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
+                               dashboard_address=None, silence_logs=40,
+                               **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
     finally:
         if blocked:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+            try:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a Ctrl-C held back lands here
+            except Interrupted:
+                if cluster is not None:
+                    _quietly_close(cluster)
+                raise
+    return cluster
+
+
+def _quietly_close(*closables) -> None:
+    """Close a Dask client and cluster after an interruption, without their shutdown messages."""
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    for c in closables:
+        if c is not None:
+            try:
+                c.close()
+            except Exception:       # already half-closed: nothing more to do
+                pass
 
 
 class BatchInterrupted(Interrupted):
@@ -102,6 +142,8 @@ class ItemOutcome:
     message: str = ""
     tracks: int = 0
     sentences: int = 0
+    #: the failure is a bug (or a lost worker), not bad input
+    internal: bool = False
 
 
 @dataclass
@@ -118,17 +160,32 @@ class BatchReport:
         return self.by_status("failed")
 
 
-def run_item(item: str, out_dir: str, single_thread: bool = True) -> ItemOutcome:
-    """Run the pipeline on one item; never raises (the failure is the outcome)."""
-    from artmotion.app.pipeline import run_pipeline
+def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | None = None) -> ItemOutcome:
+    """Run the pipeline on one item; never raises (the failure is the outcome).
+
+    ``batch``: the batch's id. Dask runs an item again when the worker that ran it is lost before
+    its result was collected; if an earlier attempt of the same batch finished it, its run is
+    reported instead of written a second time."""
+    from artmotion._native import quiet_native_logs
+    from artmotion.app.pipeline import load_run, run_pipeline
 
     t0 = time.perf_counter()
+    quiet_native_logs()              # a damaged item is one line in the report, not FFmpeg's chatter
     if single_thread:
         import cv2
 
         cv2.setNumThreads(1)
+    internal = False
+    if batch is not None and is_finished(out_dir):
+        try:
+            run = load_run(out_dir)
+        except ArtmotionError:
+            run = None
+        if run is not None and run.get("batch") == batch:
+            return ItemOutcome(item, "done", out_dir, run.get("seconds") or 0.0, tracks=len(run["track_summary"]),
+                               sentences=len(run["sentences"]))
     try:
-        res = run_pipeline(item, out_dir, progress=False)
+        res = run_pipeline(item, out_dir, progress=False, batch=batch)
         return ItemOutcome(item, "done", out_dir, time.perf_counter() - t0,
                            tracks=res.num_tracks, sentences=len(res.sentences))
     except ArtmotionError as exc:
@@ -139,7 +196,21 @@ def run_item(item: str, out_dir: str, single_thread: bool = True) -> ItemOutcome
         tb = traceback.extract_tb(exc.__traceback__)
         where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
         msg = f"internal error {type(exc).__name__}: {exc}{where}"
-    return ItemOutcome(item, "failed", out_dir, time.perf_counter() - t0, message=msg)
+        internal = True
+    return ItemOutcome(item, "failed", out_dir, time.perf_counter() - t0, message=msg, internal=internal)
+
+
+def _remove_stale_temporaries(out_dirs: list[str]) -> None:
+    """Remove the temporary folders that runs killed with their worker left next to their run
+    folders (``.NAME.xxxxxxxx.tmp``, see :func:`artmotion.io.atomic_dir`): the item was run again
+    or reported failed, and nothing else writes such names."""
+    import shutil
+
+    for od in map(Path, out_dirs):
+        if od.parent.is_dir():
+            for tmp in od.parent.glob(f".{od.name}.*.tmp"):
+                if tmp.is_dir() and len(tmp.name) == len(od.name) + 14:   # "." + name + ".xxxxxxxx.tmp"
+                    shutil.rmtree(tmp, ignore_errors=True)
 
 
 def run_batch(
@@ -156,9 +227,9 @@ def run_batch(
     ``processes=False`` runs the local workers as threads of this process (cheaper to start; for
     tests and small archives).
     """
-    from dask.distributed import Client, as_completed
+    import uuid
 
-    from artmotion.app.pipeline import is_finished
+    from dask.distributed import Client, as_completed
 
     if scheduler:
         _check_scheduler(scheduler)
@@ -179,16 +250,19 @@ def run_batch(
     if todo:
         cluster = None
         if scheduler:
-            try:
-                client = Client(scheduler, timeout="10s")
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise InputError(f"cannot reach Dask scheduler: {exc}", path=scheduler) from None
+            client = _connect(scheduler)
         else:
             cluster = _start_local_cluster(workers, processes)
-            client = Client(cluster)
+            try:
+                client = Client(cluster)
+            except BaseException:
+                _quietly_close(cluster)
+                raise
         try:
             report.workers = len(client.scheduler_info().get("workers", {}))
-            futures = {client.submit(run_item, it, od, pure=False, key=f"artmotion-{i}-{item_name(Path(it))}"): (it, od)
+            batch = uuid.uuid4().hex[:12]
+            futures = {client.submit(run_item, it, od, batch=batch, pure=False,
+                                     key=f"artmotion-{batch}-{i}-{item_name(Path(it))}"): (it, od)
                        for i, (it, od) in enumerate(todo)}
             try:
                 for fut in as_completed(futures):
@@ -196,7 +270,8 @@ def run_batch(
                     try:
                         outcome = fut.result()
                     except Exception as exc:  # the worker itself died (killed, out of memory)
-                        outcome = ItemOutcome(it, "failed", od, message=f"worker lost: {type(exc).__name__}: {exc}")
+                        outcome = ItemOutcome(it, "failed", od, message=f"worker lost: {type(exc).__name__}: {exc}",
+                                              internal=True)
                     report.outcomes.append(outcome)
                     if on_progress:
                         on_progress(outcome, len(report.outcomes), total)
@@ -213,6 +288,9 @@ def run_batch(
             client.close()
             if cluster is not None:
                 cluster.close()
+        # every item ended: what is left of attempts killed with their worker is stale (not after
+        # an interruption, when an existing cluster's workers may still be finishing theirs)
+        _remove_stale_temporaries([od for _, od in todo])
     report.outcomes.sort(key=lambda o: o.item)
     report.seconds = time.perf_counter() - t0
     return report

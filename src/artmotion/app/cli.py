@@ -75,10 +75,13 @@ def run_cmd(
                                               help="Pose model (artmotion pose train): adds opens/closes sentences."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
+    import sys
+
     from artmotion.app.pipeline import run_pipeline
 
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
-    res = run_pipeline(source, out, det=det, object_class=object_class, progress=True, video=video,
+    # the progress bar only on a terminal: in a log, an error stays the one line on stderr
+    res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s")
@@ -165,7 +168,9 @@ def batch_cmd(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from artmotion.app.batch import BatchInterrupted, run_batch
+    from artmotion.errors import check_range
 
+    check_range("--workers", workers, 1, 1024, integer=True)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
     try:
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -181,8 +186,10 @@ def batch_cmd(
     except BatchInterrupted as exc:
         r = exc.report
         kept = r.by_status("done") + r.by_status("skipped")
-        typer.echo(f"batch interrupted: {len(kept)} finished (kept), {len(r.by_status('failed'))} failed, "
-                   f"{len(exc.not_run)} not run; run the same command again to resume", err=True)
+        n_failed = len(r.by_status("failed"))
+        exc.kept = (f"{len(kept)} of {len(kept) + n_failed + len(exc.not_run)} items finished (kept), {n_failed} failed, "
+                    f"{len(exc.not_run)} not finished (nothing half-written was kept); run the same command again "
+                    "to resume")
         raise
     done, skipped, failed = (report.by_status(s) for s in ("done", "skipped", "failed"))
     for o in done:
@@ -195,10 +202,11 @@ def batch_cmd(
     typer.echo(f"{len(done)} done, {len(skipped)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
                f" on {report.workers} worker(s)")
     if failed:
-        typer.echo("failed:", err=True)
+        # one line per failed item; exit 2 when every failure is bad input, 1 when one is a bug
         for o in failed:
-            typer.echo(f"  {Path(o.item).name}: {o.message}", err=True)
-        raise typer.Exit(1)
+            where = "" if o.message.startswith(o.item) else f"{o.item}: "
+            typer.echo(f"artmotion: {'internal error' if o.internal else 'error'}: {where}{o.message}", err=True)
+        raise typer.Exit(1 if any(o.internal for o in failed) else 2)
 
 
 def register(app: typer.Typer) -> None:

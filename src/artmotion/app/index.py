@@ -190,15 +190,25 @@ class EventIndex:
         run = run if run is not None else load_run(run_dir)
         name = run["name"]
         source = _source_key(run, run_dir)
+        with self._errors(), self.conn:  # one transaction: a run is indexed whole or not at all
+            self._insert(run, name, source, run_dir)
+        return name
+
+    @contextlib.contextmanager
+    def _errors(self):
+        """SQLite's errors as one :class:`InputError` naming the index (a damaged or truncated
+        file, a read-only one, a full disk)."""
         try:
-            with self.conn:  # one transaction: a run is indexed whole or not at all
-                self._insert(run, name, source, run_dir)
-        except sqlite3.OperationalError as exc:
-            msg = str(exc)
+            yield
+        except (sqlite3.DatabaseError, ValueError, TypeError) as exc:
+            # ValueError, TypeError: text that is not UTF-8, a column that is not the JSON it should be
+            msg = str(exc) if isinstance(exc, sqlite3.DatabaseError) else f"unreadable contents: {type(exc).__name__}"
             if "readonly" in msg or "read-only" in msg:
                 raise InputError("cannot write the index: the file is read-only", path=self.path) from None
-            raise InputError(f"cannot write the index: {msg}", path=self.path) from None
-        return name
+            if isinstance(exc, sqlite3.OperationalError) and "full" in msg:
+                raise InputError(f"cannot write the index: {msg}", path=self.path) from None
+            raise InputError(f"damaged index ({msg}); build a new one with 'artmotion index add'",
+                             path=self.path) from None
 
     def _insert(self, run: dict, name: str, source: str, run_dir) -> None:
         self.conn.execute(
@@ -234,16 +244,18 @@ class EventIndex:
     def videos(self) -> list[dict]:
         """Every indexed video: name, source path, frames, fps and its counts of tracks, events and
         sentences, by name (then source)."""
-        rows = self.conn.execute(
-            "SELECT v.name, v.source_path, v.frames, v.fps, (SELECT count(*) FROM tracks t WHERE t.video_id = v.id),"
-            " (SELECT count(*) FROM events e WHERE e.video_id = v.id),"
-            " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name, v.source_path"
-        ).fetchall()
+        with self._errors():
+            rows = self.conn.execute(
+                "SELECT v.name, v.source_path, v.frames, v.fps, (SELECT count(*) FROM tracks t WHERE t.video_id = v.id),"
+                " (SELECT count(*) FROM events e WHERE e.video_id = v.id),"
+                " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name, v.source_path"
+            ).fetchall()
         return [dict(zip(("name", "source", "frames", "fps", "tracks", "events", "sentences"), r)) for r in rows]
 
     def shared_names(self) -> set[str]:
         """Names that more than one indexed video has (shown with their source paths)."""
-        rows = self.conn.execute("SELECT name FROM videos GROUP BY name HAVING count(*) > 1").fetchall()
+        with self._errors():
+            rows = self.conn.execute("SELECT name FROM videos GROUP BY name HAVING count(*) > 1").fetchall()
         return {r[0] for r in rows}
 
     # -------------------------------------------------------------- searching
@@ -257,9 +269,10 @@ class EventIndex:
         if not text.strip():
             raise InputError("empty query")
         q = parse_query(text)
-        hits = self._structured(q, video) if q.structured else []
-        if not hits and (q.unknown or not q.structured):
-            hits = self._fulltext(text, video)
+        with self._errors():
+            hits = self._structured(q, video) if q.structured else []
+            if not hits and (q.unknown or not q.structured):
+                hits = self._fulltext(text, video)
         hits.sort(key=lambda h: (-h.score, h.video, h.frame_start))
         return hits[:limit]
 
@@ -336,6 +349,12 @@ def check_index(path: Path) -> None:
         raise InputError("not an artmotion index (not a SQLite database)", path=path)
     if int.from_bytes(head[68:72], "big") != APPLICATION_ID:   # the header's application_id field
         raise InputError("not an artmotion index (a SQLite database of another program; left untouched)", path=path)
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    pages = int.from_bytes(head[28:32], "big")                  # the database's size in pages
+    if pages and size < page * pages:
+        raise InputError(f"damaged index (truncated: {size} of its {page * pages} bytes); build a new one with "
+                         "'artmotion index add'", path=path)
     version = int.from_bytes(head[60:64], "big")                # user_version
     if version != SCHEMA_VERSION:
         raise InputError(f"an artmotion index of another version ({version}, this is {SCHEMA_VERSION}); "

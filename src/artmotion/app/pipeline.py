@@ -15,6 +15,7 @@ batch can resume by skipping folders that hold a ``run.json``.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from contextlib import closing
@@ -25,7 +26,10 @@ import numpy as np
 
 from artmotion import __version__
 from artmotion.errors import InputError
-from artmotion.io import atomic_write, write_events, write_mot
+from artmotion.io import atomic_dir, atomic_write, read_mot, write_events, write_mot
+from artmotion.io.events import event_problem
+from artmotion.io.media import MAX_FPS, MIN_FPS
+from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 
 MANIFEST = "run.json"
 
@@ -129,20 +133,54 @@ def run_pipeline(
     progress: bool = False,
     video: bool = True,
     pose_model: str | os.PathLike | None = None,
+    batch: str | None = None,
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
     With ``pose_model`` (from ``artmotion pose train``) every track's crops also go through the
-    pose regressor, and the tool's opening and closing become sentences.
+    pose regressor, and the tool's opening and closing become sentences. ``batch``: the id of the
+    batch that runs it, kept in the manifest (a batch never runs an item twice).
     """
-    from artmotion.app.report import write_report
-    from artmotion.tracking import evaluate, open_sequence, track
+    from artmotion.tracking import open_sequence
 
     t0 = time.perf_counter()
     seq = open_sequence(source)
+    # everything that can be checked is checked before the long work: the pose model (loaded and
+    # tried on a crop), the ground truth
     pose = load_pose_model(pose_model) if pose_model is not None else None
+    gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
+    # a new run folder (or a new run replacing an earlier one) appears only when it is complete
+    with atomic_dir(out, replace=_is_run) as dst:
+        manifest, tracks = _run_into(dst, seq, source, fingerprint, det, object_class, experts, progress, video,
+                                     pose, gt)
+        manifest["seconds"] = round(time.perf_counter() - t0, 3)
+        if batch is not None:
+            manifest["batch"] = batch
+        with atomic_write(dst / MANIFEST) as fh:
+            json.dump(manifest, fh, indent=1, allow_nan=False)
+    return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
+                     manifest["seconds"])
+
+
+#: the files of a run folder
+RUN_FILES = frozenset({MANIFEST, "results.txt", "events.jsonl", "sentences.txt", "report.html", "annotated.mp4"})
+
+
+def _is_run(folder: Path) -> bool:
+    """Whether ``folder`` holds an earlier run and nothing else (a new run then replaces it whole)."""
+    names = {p.name for p in folder.iterdir()}
+    return MANIFEST in names and names <= RUN_FILES
+
+
+def _run_into(out: Path, seq, source, fingerprint: str, det, object_class: str, experts, progress: bool,
+              video: bool, pose, gt) -> tuple[dict, np.ndarray]:
+    """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
+    written yet) and the tracks."""
+    from artmotion.app.report import write_report
+    from artmotion.tracking import evaluate, track
+
     kwargs = {"det": det, "progress": progress}
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
@@ -161,8 +199,10 @@ def run_pipeline(
     poses = track_poses(seq, tracks, *pose) if pose is not None else None
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
-    if seq.gt_path is not None and Path(seq.gt_path).is_file():
-        metrics = {k: float(v) for k, v in evaluate(seq.gt_path, tracks).items()}
+    if gt is not None and len(gt):
+        scores = evaluate(gt, tracks)
+        # ground truth whose boxes are all ignored (distractors, conf 0) is no ground truth
+        metrics = {k: float(v) for k, v in scores.items()} if scores["GT_DETS"] else None
 
     write_mot(out / "results.txt", tracks)
     write_events(out / "events.jsonl", events)
@@ -183,10 +223,9 @@ def run_pipeline(
         "tracking_fps": float(result.fps),
     }
     write_report(out / "report.html", seq, tracks, manifest)
-    manifest["seconds"] = round(time.perf_counter() - t0, 3)
-    with atomic_write(out / MANIFEST) as fh:
-        json.dump(manifest, fh, indent=1, allow_nan=False)
-    return RunResult(out, seq.name, tracks, events, sentences, metrics, manifest["seconds"])
+    return manifest, tracks
+
+
 
 
 def is_finished(run_dir: str | os.PathLike) -> bool:
@@ -209,16 +248,25 @@ def load_run(run_dir: str | os.PathLike) -> dict:
     return run
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
+def _is_int(v, lo: int = -MAX_ID, hi: int = MAX_ID) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi
+
+
+def _is_frame(v) -> bool:
+    return _is_int(v, 1, MAX_FRAME)
 
 
 def _int_list(v) -> bool:
     return isinstance(v, list) and all(_is_int(x) for x in v)
 
 
+def _is_number(v, lo: float, hi: float) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi
+
+
 def _manifest_problem(run) -> str | None:
-    """What in a manifest is not of the right type, or ``None``."""
+    """What in a manifest is not of the right type or range, or ``None``. Events are checked by
+    :func:`artmotion.io.events.event_problem`, as in an events file."""
     if not isinstance(run, dict):
         return "not a JSON object"
     for key in ("name", "track_summary", "events", "sentences"):
@@ -226,27 +274,34 @@ def _manifest_problem(run) -> str | None:
             return f"no {key!r}"
     if not isinstance(run["name"], str) or not run["name"]:
         return "'name' is not a non-empty string"
-    for key in ("source", "fingerprint"):
+    for key in ("source", "fingerprint", "batch"):
         if key in run and run[key] is not None and not isinstance(run[key], str):
             return f"{key!r} is not a string"
     seq = run.get("sequence", {})
-    if not isinstance(seq, dict) or any(k in seq and seq[k] is not None and not isinstance(seq[k], (int, float))
-                                        for k in ("length", "fps", "width", "height")):
-        return "'sequence' is not an object of numbers"
+    ranges = {"length": (1, MAX_FRAME), "fps": (MIN_FPS, MAX_FPS), "width": (1, MAX_COORD), "height": (1, MAX_COORD)}
+    if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_number(seq[k], *r) for k, r in ranges.items()):
+        return ("'sequence' is not an object of numbers in range (length in [1, 10000000], fps in [0.001, 1000], "
+                "width and height in [1, 1e6])")
     if not isinstance(run["track_summary"], list) or not all(
-            isinstance(t, dict) and all(_is_int(t.get(k)) for k in ("id", "first_frame", "last_frame", "boxes"))
-            for t in run["track_summary"]):
-        return "'track_summary' is not a list of tracks (integer id, first_frame, last_frame, boxes)"
-    if not isinstance(run["events"], list) or not all(
-            isinstance(e, dict) and isinstance(e.get("type"), str) and _is_int(e.get("frame"))
-            and _int_list(e.get("tracks")) for e in run["events"]):
-        return "'events' is not a list of events (type, integer frame, list of track ids)"
+            isinstance(t, dict) and _is_int(t.get("id")) and all(_is_frame(t.get(k)) for k in ("first_frame", "last_frame"))
+            and _is_int(t.get("boxes"), 0, MAX_FRAME) for t in run["track_summary"]):
+        return "'track_summary' is not a list of tracks (integer id, first_frame, last_frame, boxes; in range)"
+    if not isinstance(run["events"], list):
+        return "'events' is not a list of events"
+    for k, ev in enumerate(run["events"]):
+        problem = event_problem(ev)
+        if problem is not None:
+            return f"'events' item {k + 1}: {problem}"
     if not isinstance(run["sentences"], list) or not all(
             isinstance(x, dict) and isinstance(x.get("sentence"), str) and _int_list(x.get("tracks", []))
-            and all(x.get(k) is None or _is_int(x.get(k)) for k in ("frame_start", "frame_end"))
+            and all(x.get(k) is None or _is_frame(x.get(k)) for k in ("frame_start", "frame_end"))
             and all(x.get(k) is None or isinstance(x.get(k), str) for k in ("subject", "verb", "adjective"))
             for x in run["sentences"]):
-        return "'sentences' is not a list of sentences (text, track ids, integer frames)"
+        return "'sentences' is not a list of sentences (text, track ids, integer frames; in range)"
+    metrics = run.get("metrics")
+    if metrics is not None and not (isinstance(metrics, dict) and all(
+            _is_number(v, -1e300, 1e300) for v in metrics.values())):
+        return "'metrics' is not an object of finite numbers"
     return None
 
 

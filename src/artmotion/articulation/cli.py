@@ -11,7 +11,7 @@ from typing import Optional
 
 import typer
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
 
 articulation_app = typer.Typer(help="Discover how things move: articulation models from trajectories.",
                                no_args_is_help=True)
@@ -41,18 +41,17 @@ def fit(
     """Classify a trajectory online (static, prismatic, revolute; poses also planar, rigid)."""
     from artmotion.articulation.trajectory import fit_trajectory
 
-    if not 0.0 < threshold < 1.0:
-        raise InputError("--threshold must lie in (0, 1)")
-    if min_samples < 3:
-        raise InputError("--min-samples must be at least 3")
-    if order < 1 or order > 6:
-        raise InputError("--order must be between 1 and 6")
+    check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
+    check_range("--min-samples", min_samples, 3, 1_000_000, integer=True)
+    check_range("--order", order, 1, 6, integer=True)
+    check_range("--noise-floor", noise_floor, 0.0, 1e12, lo_open=True)
+    check_range("--max-radius", max_radius, 0.0, 1e12, lo_open=True)
     if not traj.exists():
         raise InputError("no such file", path=traj)
     out = fit_trajectory(traj, time=time, threshold=threshold, min_samples=min_samples, order=order,
                          noise_floor=noise_floor, max_radius=max_radius)
     if as_json:
-        typer.echo(json.dumps(out))
+        typer.echo(json.dumps(out, allow_nan=False))
         return
     n = out["samples"]
     typer.echo(f"{traj}: {n} samples ({out['input']}{', time column' if out['time_column'] else ''})")
@@ -70,6 +69,10 @@ def fit(
         typer.echo(f"next sample predicted at {_fmt(out['prediction'][0])}")
 
 
+#: the EKF's covariance has (2 * landmarks + 3)^2 entries: 1000 landmarks take 32 MB
+MAX_LANDMARKS = 1000
+
+
 @slam_app.command("simulate")
 def simulate(
     landmarks: int = typer.Option(42, "--landmarks", help="Point landmarks in all."),
@@ -84,10 +87,12 @@ def simulate(
     """Compare Articulated EKF SLAM with EKF SLAM (Table 4.2)."""
     from artmotion.articulation.slam import monte_carlo, plot_run
 
-    if landmarks < 1 or prismatic < 0 or revolute < 0 or prismatic + revolute > landmarks:
-        raise InputError("need --landmarks >= 1 and 0 <= --prismatic + --revolute <= --landmarks")
-    if steps < 2 or runs < 1:
-        raise InputError("need --steps >= 2 and --runs >= 1")
+    check_range("--landmarks", landmarks, 1, MAX_LANDMARKS, integer=True)
+    check_range("--prismatic", prismatic, 0, landmarks, integer=True)
+    check_range("--revolute", revolute, 0, landmarks - prismatic, integer=True)
+    check_range("--steps", steps, 2, 100_000, integer=True)
+    check_range("--runs", runs, 1, 10_000, integer=True)
+    check_seed(seed)
     if plot is not None and plot.suffix.lower() != ".png":
         raise InputError("--plot must name a .png file", path=plot)
     res = monte_carlo(runs=runs, steps=steps, landmarks=landmarks, prismatic=prismatic, revolute=revolute,
@@ -97,7 +102,7 @@ def simulate(
         world, sim, results = last
         plot_run(world, sim, results, plot, frames=(min(10, steps), min(100, steps), -1))
     if as_json:
-        typer.echo(json.dumps(res))
+        typer.echo(json.dumps(res, allow_nan=False))
         return
     typer.echo(f"{runs} runs x {steps} steps, {landmarks} landmarks ({prismatic} prismatic, {revolute} revolute)")
     typer.echo(f"{'':22s}{'translation':>12s}{'rotation':>10s}{'abs. transl.':>14s}{'abs. rot.':>11s}")

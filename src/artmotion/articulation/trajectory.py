@@ -10,7 +10,8 @@ A trajectory file has one sample per row, whitespace- or comma-separated:
   4- or 8-column file is an error. Without a time column samples are one time unit apart.
 
 Blank lines and lines starting with ``#`` are skipped; one header row (any non-numeric first row)
-is allowed. Every error names the file and line.
+is allowed. Values must be finite, coordinates within ``±1e12`` and times within ``±1e15``. Every
+error names the file and line.
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ from artmotion.geometry.rotations import axis_angle_to_matrix
 
 __all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
 
+#: coordinates (data units) and times of a trajectory lie within +-these: beyond, squares and
+#: sums of squares of the samples lose all precision or overflow
+MAX_COORD = 1e12
+MAX_TIME = 1e15
 _TIME_NAMES = {"t", "time", "timestamp", "stamp", "sec", "secs", "seconds"}
 _SPLIT = re.compile(r"[,\s;]+")
 
@@ -47,8 +52,10 @@ class Trajectory:
 def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
     path = os.fspath(path)
+    if not os.path.isfile(path):          # a folder, a device or a pipe would be read forever
+        raise InputError("no such file" if not os.path.exists(path) else "not a file", path=path)
     try:
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:
             text = fh.read()
     except UnicodeDecodeError as exc:
         raise InputError("not a text file", path=path) from exc
@@ -94,6 +101,11 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         what = "after the time column " if has_time else ""
         raise InputError(f"expected 2 (x y), 3 (x y z) or 7 (x y z qx qy qz qw) columns {what}but got {width}",
                          path=path, line=int(lines[0]))
+    for values, limit, what in ((data, MAX_COORD, "coordinate"), (tcol, MAX_TIME, "time")):
+        if values is not None and np.any(np.abs(values) > limit):
+            row = int(np.flatnonzero(np.any(np.abs(values.reshape(len(values), -1)) > limit, axis=1))[0])
+            raise InputError(f"{what} out of range: values must lie in [-{limit:g}, {limit:g}]", path=path,
+                             line=int(lines[row]))
     if tcol is not None:
         bad = np.flatnonzero(np.diff(tcol) <= 0)
         if bad.size:

@@ -1,15 +1,17 @@
 """Write outputs to a temporary file in the destination folder, then rename.
 
 Nothing half-written is ever left at the destination: on error the temporary file is removed.
+Folders of outputs are built the same way (:func:`atomic_dir`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO, Callable, Iterator
 
 from artmotion.errors import InputError
 
@@ -21,6 +23,14 @@ def _prepare(path: str | os.PathLike) -> Path:
     except OSError as exc:
         raise InputError(f"cannot create output folder: {exc.strerror}", path=path.parent) from exc
     return path
+
+
+def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
+    """``exc`` naming ``path`` where it names the temporary ``tmp`` (a message never shows a
+    temporary name)."""
+    if exc.path is None or not exc.path.startswith(str(tmp)):
+        return exc
+    return InputError(exc.reason, path=str(path) + exc.path[len(str(tmp)):], line=exc.line)
 
 
 @contextlib.contextmanager
@@ -44,6 +54,18 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     try:
         yield tmp_path
         os.replace(tmp_path, path)
+    except InputError as exc:
+        with contextlib.suppress(OSError):
+            tmp_path.unlink()
+        renamed = _renamed(exc, tmp_path, path)
+        if renamed is exc:
+            raise
+        raise renamed from None
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp_path.unlink()
+        # a full disk, a lost permission: name the destination, never the temporary name
+        raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from exc
     except BaseException:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
@@ -61,6 +83,63 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", encoding: str | None 
                 yield fh
         except OSError as exc:
             raise InputError(f"cannot write: {exc.strerror}", path=path) from exc
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None = None) -> Iterator[Path]:
+    """Yield a folder in which to write the outputs that belong in the folder ``path``.
+
+    When ``path`` does not exist or is empty, the outputs are written into a temporary folder
+    next to it, renamed onto ``path`` when the block succeeds and removed when it fails: a failed
+    or interrupted command leaves no folder. When ``path`` is a folder of earlier outputs that
+    ``replace(path)`` says are this program's own (e.g. a finished run), the new outputs are built
+    the same way and then swapped in for the old ones. Any other existing folder is yielded itself
+    (its other files are not touched; write each output with :func:`atomic_write`)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError("exists and is not a folder", path=path)
+    try:
+        empty = path.is_dir() and not any(path.iterdir())
+    except OSError as exc:
+        raise InputError(f"cannot read the folder: {exc.strerror}", path=path) from None
+    swap = path.is_dir() and not empty and replace is not None and replace(path)
+    if path.is_dir() and not empty and not swap:
+        yield path
+        return
+    _prepare(path)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", path=path) from None
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)     # mkdtemp's 0700 would make outputs private to their writer
+    old = None
+    try:
+        yield tmp
+        if swap:
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old.tmp", dir=path.parent))
+            os.replace(path, old)
+        os.replace(tmp, path)               # onto an empty folder too (POSIX rename)
+    except InputError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        renamed = _renamed(exc, tmp, path)
+        if renamed is exc:
+            raise
+        raise renamed from None
+    except OSError as exc:
+        if old is not None and not path.exists():
+            with contextlib.suppress(OSError):
+                os.replace(old, path)                 # put the earlier outputs back
+        shutil.rmtree(tmp, ignore_errors=True)
+        where = Path(str(exc.filename).replace(str(tmp), str(path), 1)) if exc.filename else path
+        raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Path:

@@ -9,10 +9,20 @@ here:
   up to the end-of-image marker, with the entropy-coded data of every scan scanned for bytes that
   cannot occur there; a PNG's chunks with their CRCs up to ``IEND`` — and decodes the same bytes
   (no second read). A damaged file is an :class:`~artmotion.errors.InputError` naming it. Damage
-  that keeps the structure intact (a block of a JPEG's data overwritten by zeros) cannot be seen
-  without decoding and is not caught.
+  that keeps the structure intact (bytes of a JPEG's image data cut out or overwritten) shows
+  while decoding: libjpeg decodes around it and reports it only on stderr ("Corrupt JPEG data:
+  premature end of data segment"), which is captured during the decode (:func:`_decode`) and
+  made the error. What even the decoder cannot see (a flipped bit that changes one coefficient)
+  is not caught.
 * :func:`check_video` recognises a video container by its first bytes (MP4/MOV, AVI, Matroska/
   WebM, MPEG, FLV, ASF/WMV, Ogg) and refuses images and anything else.
+
+* :func:`write_image` encodes an image in memory and writes it atomically (a full disk is an
+  error naming the file, not a codec's message); :func:`check_written_video` reads back a video
+  just written and refuses it unless every frame is there (OpenCV's writer reports no errors).
+* FFmpeg's and OpenCV's own messages are kept off stderr by the command line
+  (:func:`artmotion._native.quiet_native_logs`): a damaged file is reported once, as an error
+  naming it.
 
 File types are named here once (:data:`IMAGE_EXTS`, :data:`VIDEO_EXTS`) for every reader.
 """
@@ -20,6 +30,9 @@ File types are named here once (:data:`IMAGE_EXTS`, :data:`VIDEO_EXTS`) for ever
 from __future__ import annotations
 
 import os
+import sys
+import tempfile
+import threading
 import zlib
 from pathlib import Path
 
@@ -27,11 +40,16 @@ import numpy as np
 
 from artmotion.errors import InputError
 
-__all__ = ["IMAGE_EXTS", "VIDEO_EXTS", "check_image_bytes", "check_video", "image_problem", "read_image"]
+__all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video", "image_problem",
+           "read_image", "write_image"]
 
 IMAGE_EXTS = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm"})
 VIDEO_EXTS = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".webm", ".wmv", ".flv", ".ts",
                         ".ogv"})
+
+#: the frame rates of a sequence (frames per second) that every command accepts: from one frame in
+#: 1000 s (time-lapse) to 1000 frames per second
+MIN_FPS, MAX_FPS = 0.001, 1000.0
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -121,6 +139,8 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     file."""
     import cv2
 
+    if os.path.exists(path) and not os.path.isdir(path) and not os.path.isfile(path):
+        raise InputError("not a file (a device or a pipe)", path=path)     # would be read forever
     try:
         buf = np.fromfile(os.fspath(path), dtype=np.uint8)
     except FileNotFoundError:
@@ -132,10 +152,61 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     if not len(buf):
         raise InputError("empty file", path=path)
     check_image_bytes(buf, path)
-    img = cv2.imdecode(buf, cv2.IMREAD_COLOR if flags is None else flags)
+    img, damage = _decode(buf, cv2.IMREAD_COLOR if flags is None else flags)
+    if damage:
+        raise InputError(f"corrupt image data ({damage})", path=path)
     if img is None or img.size == 0:
         raise InputError("cannot decode image (corrupt or not an image)", path=path)
     return img
+
+
+#: how libjpeg and libpng report, on stderr only, damage they decoded around (a gray block, a
+#: desynchronised scan): the decoder still returns an image
+_DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS parameters", "Inconsistent progression",
+           "Huffman table", "Bogus", "libpng error")
+#: their other messages (e.g. "libpng warning: iCCP: known incorrect sRGB profile"): not shown
+_CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
+_stderr_lock = threading.Lock()
+_capture = threading.local()
+
+
+def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]:
+    """``cv2.imdecode`` and the first damage its codec reported meanwhile (``None`` if none).
+
+    libjpeg warns about corrupt data it decodes around ("Corrupt JPEG data: 67 extraneous bytes
+    before marker 0xd9") only on the process's stderr, and OpenCV returns the image: the file
+    descriptor 2 is pointed at a scratch file while the image decodes, and what the codec says is
+    read back. Anything else written to stderr meanwhile (another thread's) is passed on."""
+    import cv2
+
+    with _stderr_lock:
+        scratch = getattr(_capture, "file", None)
+        if scratch is None:
+            scratch = _capture.file = tempfile.TemporaryFile()
+        scratch.seek(0)
+        scratch.truncate()
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError, AttributeError):     # no stderr to redirect: decode as is
+            saved = None
+        if saved is not None:
+            os.dup2(scratch.fileno(), 2)
+        try:
+            img = cv2.imdecode(buf, flags)
+        except cv2.error:                                  # beyond OpenCV's limits (pixels, size)
+            img = None
+        finally:
+            if saved is not None:
+                os.dup2(saved, 2)
+                os.close(saved)
+        scratch.seek(0)
+        said = scratch.read().decode("utf-8", "replace").splitlines()
+    damage = next((line.strip() for line in said if line.startswith(_DAMAGE)), None)
+    other = [line for line in said if line.strip() and not line.startswith(_CODEC)]
+    if other:
+        os.write(2, ("\n".join(other) + "\n").encode())
+    return img, damage
 
 
 #: first bytes of video containers: (offset, bytes)
@@ -173,3 +244,33 @@ def check_video(path: str | os.PathLike) -> Path:
         kind = f" (extension {path.suffix})" if path.suffix else ""
         raise InputError(f"not a video{kind}: its content is no known video container", path=path)
     return path
+
+
+def write_image(path: str | os.PathLike, img: np.ndarray, params: list[int] | None = None) -> Path:
+    """Encode ``img`` in the format of ``path``'s extension and write it atomically."""
+    import cv2
+
+    from artmotion.io.atomic import atomic_write
+
+    path = Path(path)
+    ok, buf = cv2.imencode(path.suffix or ".png", img, params or [])
+    if not ok:
+        raise InputError("cannot encode the image", path=path)
+    with atomic_write(path, "wb") as fh:
+        fh.write(buf.tobytes())
+    return path
+
+
+def check_written_video(path: str | os.PathLike, frames: int, where: str | os.PathLike | None = None) -> None:
+    """Raise unless the video at ``path`` (just written) opens and holds ``frames`` frames: OpenCV's
+    writer drops frames silently when the disk is full. ``where`` names it in the message."""
+    import cv2
+
+    cap = cv2.VideoCapture(os.fspath(path))
+    try:
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+    finally:
+        cap.release()
+    if count != frames:
+        got = "cannot be read back" if count < 0 else f"holds {count} of its {frames} frames"
+        raise InputError(f"the video written {got} (disk full?)", path=where or path)

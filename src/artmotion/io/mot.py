@@ -12,6 +12,12 @@ from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
 
 MOT_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "X", "Y", "Z")
+#: the largest frame number of a sequence (also the largest ``seqLength`` of a seqinfo.ini)
+MAX_FRAME = 10_000_000
+#: track ids are whole numbers of at most this size (SQLite and NumPy hold them exactly)
+MAX_ID = 2**31 - 1
+#: box coordinates and sizes in pixels lie within +-this
+MAX_COORD = 1e6
 
 
 def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_empty: bool = True) -> np.ndarray:
@@ -19,16 +25,20 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
 
     Rows may have 6 to 10 comma- (or whitespace-) separated numbers; missing trailing columns
     are filled with ``conf=1`` and ``X=Y=Z=-1``. Every problem is reported as an
-    :class:`InputError` naming the file and line: non-numeric or NaN values, a frame below 1
-    or not an integer, non-positive width or height, frames out of order (``require_sorted``).
+    :class:`InputError` naming the file and line: non-numeric, NaN or infinite values, a frame
+    or track id that is not a whole number in range (:data:`MAX_FRAME`, :data:`MAX_ID`),
+    non-positive width or height, coordinates beyond :data:`MAX_COORD`, frames out of order
+    (``require_sorted``), text that is not UTF-8.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError("no such file" if not path.exists() else "not a file", path=path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", path=path) from exc
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError("not UTF-8 text (a MOTChallenge file is text)", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
     rows: list[list[float]] = []
     last_frame = -math.inf
     for lineno, raw in enumerate(text.splitlines(), start=1):
@@ -44,11 +54,18 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
             raise InputError(f"non-numeric value in {line!r}", path=path, line=lineno) from None
         if not all(math.isfinite(v) for v in values):
             raise InputError("NaN or infinite value", path=path, line=lineno)
-        frame, _tid, _x, _y, w, h = values[:6]
-        if frame < 1 or frame != int(frame):
-            raise InputError(f"frame must be a positive integer, got {parts[0]}", path=path, line=lineno)
+        frame, tid, x, y, w, h = values[:6]
+        if frame < 1 or frame != int(frame) or frame > MAX_FRAME:
+            raise InputError(f"frame must be a positive integer in [1, {MAX_FRAME}], got {parts[0]}", path=path,
+                             line=lineno)
+        if tid != int(tid) or abs(tid) > MAX_ID:
+            raise InputError(f"track id must be a whole number in [-{MAX_ID}, {MAX_ID}], got {parts[1]}", path=path,
+                             line=lineno)
         if w <= 0 or h <= 0:
             raise InputError(f"non-positive box size {w:g}x{h:g}", path=path, line=lineno)
+        if max(abs(x), abs(y), w, h) > MAX_COORD:
+            raise InputError(f"box {x:g},{y:g},{w:g},{h:g} out of range: coordinates and sizes must lie in "
+                             f"[-{MAX_COORD:g}, {MAX_COORD:g}] pixels", path=path, line=lineno)
         if require_sorted and frame < last_frame:
             raise InputError(f"frame {int(frame)} out of order (after frame {int(last_frame)})", path=path, line=lineno)
         last_frame = max(last_frame, frame)

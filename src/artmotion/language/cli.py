@@ -13,16 +13,19 @@ from typing import List, Optional
 
 import typer
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
 
 
 def _size(text: str | None) -> tuple[float, float] | None:
     if text is None:
         return None
+    from artmotion.io.mot import MAX_COORD
+
     m = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX]\s*(\d+(?:\.\d*)?)\s*", text)
     if not m or float(m.group(1)) <= 0 or float(m.group(2)) <= 0:
         raise InputError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x480")
-    return float(m.group(1)), float(m.group(2))
+    w, h = (check_range("--size", float(v), 0.0, MAX_COORD, lo_open=True) for v in m.groups())
+    return w, h
 
 
 def describe_cmd(
@@ -43,8 +46,18 @@ def describe_cmd(
     from artmotion.io import read_events, read_mot
     from artmotion.language.describe import describe, parse_classes, read_pose
 
-    if fps is not None and not fps > 0:
-        raise InputError(f"--fps must be positive, got {fps:g}")
+    from artmotion.io.mot import MAX_ID
+    from artmotion.io.table import MAX_ANGLE
+
+    from artmotion.io.media import MAX_FPS, MIN_FPS
+
+    if fps is not None:
+        check_range("--fps", fps, MIN_FPS, MAX_FPS)
+    for name, angle in (("--open-above", open_above), ("--close-below", close_below)):
+        if angle is not None:
+            check_range(name, angle, -MAX_ANGLE, MAX_ANGLE)
+    if pose_track is not None:
+        check_range("--pose-track", pose_track, -MAX_ID, MAX_ID, integer=True)
     rows = read_mot(results)
     evs = read_events(events) if events is not None else None
     pose_seq = None
@@ -93,6 +106,7 @@ def grounding_eval(
     """Retrieval (3-fold CV) and unseen colour–shape pairs, compositional vs paired model."""
     from artmotion.language.grounding.evaluate import evaluate, format_report
 
+    check_seed(seed)
     report = evaluate(dataset, out=out if out is not None else Path(dataset) / "eval", seed=seed)
     if as_json:
         brief = {m: {part: report[m][part] for part in ("retrieval", "unseen")} for m in ("compositional", "paired")}

@@ -17,7 +17,6 @@ The pose attribute "opens"/"closes" is read from the opening angle with hysteres
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import re
@@ -28,6 +27,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.geometry import box_center
+from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 from artmotion.language.grammar import SIDES, Triplet, join_subjects, noun_phrase, render
 
 
@@ -289,15 +289,7 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     ``column`` defaults to the first angle column whose name contains ``open``. Frames are the
     last number in each image name when those are distinct and increasing, else the row number.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such file", path=path)
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", path=path) from None
-    header = [h.strip() for h in rows[0]] if rows else []
+    header, rows = read_csv(path, what="pose prediction CSV")
     if "image" not in header:
         raise InputError("not a pose prediction CSV: no 'image' column in the header", path=path, line=1)
     angles = [h for h in header if h != "image" and not h.endswith("_std")]
@@ -310,24 +302,14 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
         raise InputError(f"no column {column!r} (columns: {', '.join(header)})", path=path, line=1)
     ci, ii = header.index(column), header.index("image")
     names, values = [], []
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row or not any(c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise InputError(f"expected {len(header)} values, found {len(row)}", path=path, line=lineno)
-        try:
-            v = float(row[ci])
-        except ValueError:
-            raise InputError(f"non-numeric {column} {row[ci]!r}", path=path, line=lineno) from None
-        if not math.isfinite(v):
-            raise InputError(f"NaN or infinite {column}", path=path, line=lineno)
+    for lineno, row in rows:
+        values.append(cell_number(row[ci], column, path, lineno, -MAX_ANGLE, MAX_ANGLE))
         names.append(row[ii])
-        values.append(v)
     if not values:
         raise InputError("empty: no predictions", path=path)
     nums = [re.findall(r"\d+", Path(n).stem) for n in names]
     frames = np.arange(1, len(values) + 1)
-    if all(nums):
+    if all(nums) and all(len(n[-1]) <= 7 for n in nums):     # frame numbers up to MAX_FRAME's digits
         cand = np.array([int(n[-1]) for n in nums])
         if np.all(np.diff(cand) > 0) and cand[0] >= 0:
             frames = cand + (1 if cand[0] == 0 else 0)

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
+from artmotion.io.events import SIDES
+
 #: verb -> category; the grammar says nothing else.
 VERBS = {
     "enters": "motion",
@@ -30,7 +32,6 @@ VERBS = {
     "closes": "pose",
 }
 DIRECTIONS = ("left", "right", "upwards", "downwards")
-SIDES = ("left", "right", "top", "bottom", "inside")
 ADJECTIVES = set(DIRECTIONS) | set(SIDES) | {
     f"{h} and {v}" for h in ("left", "right") for v in ("upwards", "downwards")
 }

@@ -12,7 +12,7 @@ from typing import List, Optional, Sequence
 
 import typer
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
 
 pose_app = typer.Typer(
     name="pose",
@@ -54,8 +54,9 @@ def train_cmd(
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
-    if components < 0:
-        raise InputError(f"--components must be 0 or positive, got {components}")
+    check_range("--components", components, 0, 100_000, integer=True)
+    check_range("--inducing", inducing, 1, 1_000_000, integer=True)
+    check_seed(seed)
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
                         seed=seed, progress=True)  # checks feature and method before any image is read
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
@@ -118,6 +119,7 @@ def eval_cmd(
 
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
+    check_range("--folds", folds, 2, 1000, integer=True)
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
@@ -131,35 +133,40 @@ def eval_cmd(
             if unames != names:
                 raise InputError(f"angle columns {unames} differ from the training labels {names}", path=u_labels)
             unseen[key] = (upaths, uimgs, uY)
-    results = {}
-    for f in feature:
-        t = time.perf_counter()
-        X = regs[f].features(imgs)
-        mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f, method=method)
-        res = summary(Y, mean, std, fmean, cols, names)
-        res["seconds"] = time.perf_counter() - t
-        if out is not None:
-            write_predictions(out / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
-            write_predictions(out / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
-        if unseen:
-            reg = regs[f].fit(X, Y, names)
-        for key, (upaths, uimgs, uY) in unseen.items():
-            um, us = reg.predict(uimgs, return_std=True)
-            ufm, ufs = reg.make_filter().filter(um, us)
-            res.update({f"{key} {k}": v for k, v in summary(uY, um, us, ufm, cols, names).items()})
-            if out is not None:
-                write_predictions(out / f"{key}_{f}.csv", [p.name for p in upaths], names, um, us)
-                write_predictions(out / f"{key}_{f}_filtered.csv", [p.name for p in upaths], names, ufm, ufs)
-        results[f] = res
-    table = format_tables(results, names, cols, list(unseen), split)
-    typer.echo(table)
-    if out is not None:
-        from artmotion.io import atomic_write
+    from contextlib import nullcontext
 
-        with atomic_write(out / "eval.md") as fh:
-            fh.write(table + "\n")
-        with atomic_write(out / "eval.json") as fh:
-            json.dump(results, fh, indent=1)
+    from artmotion.io import atomic_dir, atomic_write
+
+    # a new --out folder appears only when every table and prediction in it is written
+    with (atomic_dir(out) if out is not None else nullcontext(None)) as dst:
+        results = {}
+        for f in feature:
+            t = time.perf_counter()
+            X = regs[f].features(imgs)
+            mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f,
+                                                          method=method)
+            res = summary(Y, mean, std, fmean, cols, names)
+            res["seconds"] = time.perf_counter() - t
+            if dst is not None:
+                write_predictions(dst / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
+                write_predictions(dst / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
+            if unseen:
+                reg = regs[f].fit(X, Y, names)
+            for key, (upaths, uimgs, uY) in unseen.items():
+                um, us = reg.predict(uimgs, return_std=True)
+                ufm, ufs = reg.make_filter().filter(um, us)
+                res.update({f"{key} {k}": v for k, v in summary(uY, um, us, ufm, cols, names).items()})
+                if dst is not None:
+                    write_predictions(dst / f"{key}_{f}.csv", [p.name for p in upaths], names, um, us)
+                    write_predictions(dst / f"{key}_{f}_filtered.csv", [p.name for p in upaths], names, ufm, ufs)
+            results[f] = res
+        table = format_tables(results, names, cols, list(unseen), split)
+        if dst is not None:
+            with atomic_write(dst / "eval.md") as fh:
+                fh.write(table + "\n")
+            with atomic_write(dst / "eval.json") as fh:
+                json.dump(results, fh, indent=1)
+    typer.echo(table)
 
 
 _UNSEEN_TITLES = {"test": "Unseen normal-light sequence", "dark": "Unseen dark sequence"}

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import math
 import os
 from pathlib import Path
 from typing import Sequence
@@ -14,6 +12,7 @@ from artmotion.errors import InputError
 from artmotion.io import atomic_write
 from artmotion.io.media import IMAGE_EXTS
 from artmotion.io.media import read_image as _read_checked
+from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 
 
 def list_images(folder: str | os.PathLike) -> list[Path]:
@@ -45,47 +44,22 @@ def read_images(paths: Sequence[Path], progress: bool = False) -> list[np.ndarra
 
 
 def read_labels(path: str | os.PathLike) -> tuple[list[str], list[str], np.ndarray]:
-    """``(angle names, image names, Y)`` from a CSV ``image,<angle>,...`` (any number of angles)."""
-    path = Path(path)
-    try:
-        fh = open(path, newline="", encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("labels file not found", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read labels: {exc.strerror}", path=path) from None
-    with fh:
-        try:
-            rows = list(csv.reader(fh))
-        except (csv.Error, UnicodeDecodeError) as exc:
-            raise InputError(f"not a CSV file: {exc}", path=path) from None
-    if not rows:
-        raise InputError("empty labels file", path=path, line=1)
-    header = [h.strip() for h in rows[0]]
+    """``(angle names, image names, Y)`` from a CSV ``image,<angle>,...`` (any number of angles),
+    checked by :func:`artmotion.io.table.read_csv`; every angle a finite number of degrees."""
+    header, rows = read_csv(path, what="labels CSV")
     if len(header) < 2 or header[0].lower() != "image":
         raise InputError("header must be 'image,<angle name>,...'", path=path, line=1)
     names = header[1:]
-    if any(not n for n in names) or len(set(names)) != len(names):
-        raise InputError("angle names must be non-empty and distinct", path=path, line=1)
     images, values, seen = [], [], set()
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise InputError(f"expected {len(header)} columns, got {len(row)}", path=path, line=lineno)
-        name = row[0].strip()
+    for lineno, row in rows:
+        name = row[0]
         if not name:
             raise InputError("empty image name", path=path, line=lineno)
         if name in seen:
             raise InputError(f"duplicate image {name!r}", path=path, line=lineno)
         seen.add(name)
-        try:
-            vals = [float(c) for c in row[1:]]
-        except ValueError:
-            raise InputError("non-numeric angle", path=path, line=lineno) from None
-        if not all(math.isfinite(v) for v in vals):
-            raise InputError("angle is NaN or infinite", path=path, line=lineno)
         images.append(name)
-        values.append(vals)
+        values.append([cell_number(c, n, path, lineno, -MAX_ANGLE, MAX_ANGLE) for n, c in zip(names, row[1:])])
     if not images:
         raise InputError("no label rows", path=path)
     return names, images, np.array(values, dtype=float)

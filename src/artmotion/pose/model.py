@@ -221,39 +221,132 @@ class PoseRegressor:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PoseRegressor":
+        """Read a model written by :meth:`save` and check it whole before it is used: every array
+        of the right type, shape and finite values, the parameters in range, the feature of its
+        crop size of the dimension the GP was trained on, and a test prediction finite. A
+        truncated, renamed, foreign or damaged file is an :class:`InputError` naming it."""
+        import zipfile
+        import zlib
+
         path = Path(path)
+        if not path.exists():
+            raise InputError("model file not found", path=path)
+        if not path.is_file():
+            raise InputError("not a file", path=path)
+        try:
+            with open(path, "rb") as fh:
+                head = fh.read(4)
+        except OSError as exc:
+            raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+        if head != b"PK\x03\x04":
+            raise InputError("not an artmotion pose model (not a NumPy .npz file)", path=path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
-        except FileNotFoundError:
-            raise InputError("model file not found", path=path) from None
-        except (ValueError, OSError, EOFError) as exc:
-            raise InputError(f"not an artmotion pose model ({type(exc).__name__})", path=path) from None
-        if "magic" not in d or str(d["magic"]) != MAGIC:
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+            raise InputError(f"not an artmotion pose model (unreadable: {type(exc).__name__})", path=path) from None
+        if not isinstance(d, dict) or "magic" not in d or d["magic"].shape != () or str(d["magic"]) != MAGIC:
             raise InputError("not an artmotion pose model (no magic key)", path=path)
-        if int(d["version"]) != VERSION:
-            raise InputError(f"unsupported pose model version {int(d['version'])}", path=path)
         try:
-            reg = cls(feature=str(d["feature"]), cell=int(d["cell"]), size=tuple(int(v) for v in d["size"]),
-                      blur=float(d["blur"]))
-            reg.names_ = [str(s) for s in d["names"]]
-            hypers = [Hyper(*map(float, h)) for h in d["hypers"]]
-            X = d["X"].astype(np.float64)
-            if d["pca_components"].size:
-                reg.pca_mean_ = d["pca_mean"].astype(np.float32)
-                reg.pca_components_ = d["pca_components"].astype(np.float32)
-                reg.n_components = len(reg.pca_components_)
-            else:
-                reg.n_components = None
-            nb = int(d["neighbours"])
-            reg.neighbours = None if nb < 0 else nb
-            if str(d["method"]) == "exact":
-                reg.gp_ = ExactGP(X, d["Ys"], hypers, d["y_mean"], d["y_std"], reg.neighbours, d["alpha"])
-            else:
-                reg.gp_ = SparseGP(X, d["Ys"], hypers, d["y_mean"], d["y_std"], d["inducing"])
-            reg.gp_.var_scale = np.asarray(d["var_scale"], dtype=float)
-            reg.accel_var_ = d["accel_var"]
-            reg.method = str(d["method"])
-        except (KeyError, ValueError, TypeError, np.linalg.LinAlgError) as exc:
-            raise InputError(f"corrupt artmotion pose model: {exc}", path=path) from None
+            version = int(d["version"])
+        except (KeyError, ValueError, TypeError, OverflowError):
+            raise InputError("corrupt artmotion pose model: no version", path=path) from None
+        if version != VERSION:
+            raise InputError(f"unsupported pose model version {version}", path=path)
+        try:
+            reg = _model_from_arrays(cls, d)
+        except InputError as exc:
+            raise InputError(f"corrupt artmotion pose model: {exc.reason}", path=path) from None
+        except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
+            raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         return reg
+
+
+def _array(d: dict, key: str, shape: tuple, kind: str = "f") -> np.ndarray:
+    """``d[key]`` checked: numeric (``"f"``), integer (``"i"``) or text (``"U"``), of ``shape``
+    (``None`` entries are free), finite."""
+    if key not in d:
+        raise InputError(f"no {key!r} array")
+    a = d[key]
+    ok = {"f": np.issubdtype(a.dtype, np.number) and not np.issubdtype(a.dtype, np.complexfloating),
+          "i": np.issubdtype(a.dtype, np.integer), "U": np.issubdtype(a.dtype, np.str_)}[kind]
+    if not ok or a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+        want = "x".join("n" if s is None else str(s) for s in shape) or "a scalar"
+        raise InputError(f"{key!r} is not a {'number' if kind != 'U' else 'text'} array of shape {want} "
+                         f"(found {a.dtype} {'x'.join(map(str, a.shape)) or 'scalar'})")
+    if kind == "f" and not np.all(np.isfinite(a)):
+        raise InputError(f"{key!r} holds NaN or infinite values")
+    if kind == "f" and a.size and np.abs(a).max() > _MAX_VALUE:
+        raise InputError(f"{key!r} holds values beyond ±{_MAX_VALUE:g}")
+    return a
+
+
+#: no number in a model is larger (float32, in which inputs are stored, ends at 3.4e38)
+_MAX_VALUE = 1e30
+
+
+def _model_from_arrays(cls, d: dict) -> PoseRegressor:
+    """A :class:`PoseRegressor` from the arrays of a model file, every one checked (see ``load``)."""
+    from artmotion.errors import check_range
+
+    feature = str(_array(d, "feature", (), "U"))
+    if feature not in F.FEATURES:
+        raise InputError(f"unknown feature {feature!r}")
+    cell = check_range("cell", _array(d, "cell", (), "i").item(), 2, 256, integer=True)
+    size = tuple(check_range("crop size", int(v), 8, 4096, integer=True) for v in _array(d, "size", (2,), "i"))
+    blur = check_range("blur", float(_array(d, "blur", ())), 0.0, 100.0)
+    method = str(_array(d, "method", (), "U"))
+    if method not in ("exact", "sparse"):
+        raise InputError(f"unknown GP method {method!r}")
+    names = [str(s) for s in _array(d, "names", (None,), "U")]
+    k = len(names)
+    if not k or len(set(names)) != k or not all(names):
+        raise InputError("angle names are not a list of distinct, non-empty names")
+    X = _array(d, "X", (None, None))
+    n, dim = X.shape
+    if n < 1 or dim < 1:
+        raise InputError("no training inputs")
+    hypers = _array(d, "hypers", (k, 3))
+    if np.any(hypers <= 0):
+        raise InputError("'hypers' (length, signal and noise variance) must be positive")
+    Ys = _array(d, "Ys", (n, k))
+    y_mean, y_std = _array(d, "y_mean", (k,)), _array(d, "y_std", (k,))
+    var_scale, accel_var = _array(d, "var_scale", (k,)), _array(d, "accel_var", (k,))
+    if np.any(y_std <= 0) or np.any(var_scale <= 0) or np.any(accel_var <= 0):
+        raise InputError("'y_std', 'var_scale' and 'accel_var' must be positive")
+    nb = check_range("neighbours", _array(d, "neighbours", (), "i").item(), -1, 1_000_000, integer=True)
+    full = F.feature_dim(feature, size, cell)
+    pca_c = _array(d, "pca_components", (None, None))
+    reg = cls(feature=feature, cell=cell, size=size, blur=blur)
+    if pca_c.size:
+        if pca_c.shape != (dim, full):
+            raise InputError(f"'pca_components' is {pca_c.shape[0]}x{pca_c.shape[1]}, not {dim}x{full} "
+                             f"(inputs of the GP x {feature} features of a {size[0]}x{size[1]} crop)")
+        reg.pca_mean_ = _array(d, "pca_mean", (full,)).astype(np.float32)
+        reg.pca_components_ = pca_c.astype(np.float32)
+        reg.n_components = dim
+    else:
+        if dim != full:
+            raise InputError(f"inputs of dimension {dim}, but {feature} features of a {size[0]}x{size[1]} crop "
+                             f"have {full}")
+        reg.n_components = None
+    reg.names_ = names
+    reg.neighbours = None if nb < 0 else nb
+    hyp = [Hyper(*map(float, h)) for h in hypers]
+    X = X.astype(np.float64)
+    if method == "exact":
+        alpha = _array(d, "alpha", (n, k)) if reg.neighbours is not None else None
+        reg.gp_ = ExactGP(X, Ys, hyp, y_mean, y_std, reg.neighbours, alpha)
+    else:
+        inducing = _array(d, "inducing", (None,), "i")
+        if not len(inducing) or inducing.min() < 0 or inducing.max() >= n or len(np.unique(inducing)) != len(inducing):
+            raise InputError("'inducing' are not distinct indices of training inputs")
+        reg.gp_ = SparseGP(X, Ys, hyp, y_mean, y_std, inducing)
+    reg.gp_.var_scale = var_scale.astype(float)
+    reg.accel_var_ = accel_var.astype(float)
+    reg.method = method
+    # a test prediction on a gray crop: whatever slipped through shows here, before any long work
+    mean, std = reg.predict([np.full((size[1], size[0], 3), 128, np.uint8)], return_std=True)
+    if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
+        raise InputError("its prediction is not finite")
+    return reg

@@ -26,8 +26,9 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from artmotion.errors import InputError
-from artmotion.io import atomic_path, atomic_write
+from artmotion.errors import check_range, check_seed
+from artmotion.io import atomic_dir, atomic_write
+from artmotion.io.media import write_image
 
 ANGLES = ("yaw", "pitch", "roll", "opening")
 EULER = "ZYX"  # intrinsic: yaw about z, pitch about y', roll about x'' (the stem axis)
@@ -358,12 +359,31 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False):
         yield RenderedFrame(frame, (x0, y0, max(2, x1 - x0), max(2, y1 - y0)), traj[i, :4].copy())
 
 
+#: the most poses one command renders (a 4000-frame sequence takes about a minute)
+MAX_POSES = 1_000_000
+
+
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
                   progress: bool = False) -> Path:
-    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``."""
-    if n < 1:
-        raise InputError(f"--poses must be positive, got {n}")
+    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``.
+
+    A new folder (or an earlier rendering in it) appears only when every file is written
+    (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
+    check_range("--poses", n, 1, MAX_POSES, integer=True)
+    check_seed(seed)
     out = Path(out)
+    with atomic_dir(out, replace=_is_rendering) as tmp:
+        _write_dataset(tmp, n, seed, dark, frames, progress)
+    return out
+
+
+def _is_rendering(folder: Path) -> bool:
+    """Whether ``folder`` holds an earlier rendering and nothing else (it is then replaced whole)."""
+    names = {p.name for p in folder.iterdir()}
+    return "labels.csv" in names and names <= {"crops", "frames", "labels.csv", "boxes.csv"}
+
+
+def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool) -> None:
     (out / "crops").mkdir(parents=True, exist_ok=True)
     if frames:
         (out / "frames").mkdir(parents=True, exist_ok=True)
@@ -376,12 +396,9 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
     for i, rf in enumerate(it, start=1):
         name = f"{i:06d}.png"
         x, y, w, h = rf.box
-        crop = rf.frame[y : y + h, x : x + w]
-        with atomic_path(out / "crops" / name) as tmp:
-            cv2.imwrite(str(tmp), crop)
+        write_image(out / "crops" / name, rf.frame[y : y + h, x : x + w])
         if frames:
-            with atomic_path(out / "frames" / f"{i:06d}.jpg") as tmp:
-                cv2.imwrite(str(tmp), rf.frame, [cv2.IMWRITE_JPEG_QUALITY, 92])
+            write_image(out / "frames" / f"{i:06d}.jpg", rf.frame, [cv2.IMWRITE_JPEG_QUALITY, 92])
         rows.append((name, *rf.angles))
         boxes.append((f"{i:06d}.jpg", x, y, w, h))
     with atomic_write(out / "labels.csv") as fh:
@@ -393,4 +410,3 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
             fh.write("image,x,y,w,h\n")
             for b in boxes:
                 fh.write(",".join(str(v) for v in b) + "\n")
-    return out

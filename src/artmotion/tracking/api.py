@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 from contextlib import closing
 from dataclasses import dataclass, field
@@ -10,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
+from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.experts import EXPERTS
 from artmotion.tracking.mot import MultiObjectTracker
@@ -104,8 +104,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     experts = _check_experts(experts)
     seq = open_sequence(source)
     if fps is not None:
-        if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= 1000):
-            raise InputError(f"frame rate must be in (0, 1000] frames/s, got {fps!r}")
+        check_range("frame rate (frames/s)", fps, MIN_FPS, MAX_FPS)
         seq.fps, seq.fps_known = float(fps), True
     det_path = Path(det) if det is not None else seq.det_path
     detector = None

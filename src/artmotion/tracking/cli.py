@@ -17,9 +17,13 @@ def eval_command(
     """Score tracking results: MOTA, MOTP, IDF1, HOTA, MT/PT/ML, FM, IDS, FP, FN (MOTChallenge rules)."""
     import json
 
+    from artmotion.errors import InputError
     from artmotion.tracking.metrics import evaluate, format_table, gt_rules
 
     scores = evaluate(gt, results, iou_threshold=iou, rules=rules)
+    if not scores["GT_DETS"]:
+        # nothing to score against: MOTA 0 would read as a result
+        raise InputError("no ground truth: no boxes to score against (empty, or every box ignored)", path=gt)
     if rules == "auto":
         from artmotion.io import read_mot
 

@@ -22,7 +22,8 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS, check_video, read_image
+from artmotion.io.media import IMAGE_EXTS, MAX_FPS, MIN_FPS, VIDEO_EXTS, check_video, read_image
+from artmotion.io.mot import MAX_FRAME
 
 DEFAULT_FPS = 25.0
 #: containers whose frame count is exact (an index of every frame): a video of this kind that
@@ -62,6 +63,8 @@ class Sequence:
         self.fps_known = True
         #: whether ``length`` is exact for a video (seqinfo.ini, or a container with a frame index)
         self.length_exact = video is None or video.suffix.lower() in _EXACT_COUNT
+        #: the seqinfo.ini that declares ``length`` for a video (then a longer video is an error)
+        self.length_from: Path | None = None
 
     def __len__(self) -> int:
         return self.length
@@ -109,17 +112,23 @@ class Sequence:
                 n += 1
                 if img.ndim == 2:
                     img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+                if img.shape[:2] != (self.height, self.width) or img.shape[2] != 3 or img.dtype != np.uint8:
+                    raise InputError(f"frame {n} is {img.shape[1]}x{img.shape[0]}, not the video's "
+                                     f"{self.width}x{self.height} (damaged)", path=self.video)
                 if reduce > 1:
                     img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield n, img
                 if n == self.length and self.length_exact:
+                    if self.length_from is not None and cap.read()[0]:
+                        raise InputError(f"seqinfo.ini says {self.length} frames but {self.video.name} has more",
+                                         path=self.length_from)
                     break
             if n == 0:
                 raise InputError("video has no decodable frames", path=self.video)
             short = self.length - n if self.length_exact else self.length - n - max(2, self.length // 50)
             if short > 0:
-                raise InputError(f"video ends after {n} of its {self.length} frames (truncated or damaged)",
-                                 path=self.video)
+                raise InputError(f"video ends after {n} of its {self.length} frames: frame {n + 1} cannot be "
+                                 "decoded (truncated or damaged)", path=self.video)
         finally:
             cap.release()
 
@@ -188,7 +197,7 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
     finally:
         cap.release()
-    known = np.isfinite(fps) and 0 < fps <= 1000
+    known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS
     return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1)
 
 
@@ -221,7 +230,7 @@ def _image_size(path: Path) -> tuple[int, int]:
 def _read_seqinfo(ini: Path) -> dict:
     cp = configparser.ConfigParser()
     try:
-        cp.read_string(ini.read_text(encoding="utf-8"))
+        cp.read_string(ini.read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", path=ini) from None
     except UnicodeDecodeError:
@@ -239,7 +248,7 @@ def _read_seqinfo(ini: Path) -> dict:
 
 
 #: plausible ranges of the numbers of seqinfo.ini
-_RANGES = {"framerate": (0.0, 1000.0), "seqlength": (0, 10_000_000)}
+_RANGES = {"framerate": (MIN_FPS, MAX_FPS), "seqlength": (1, MAX_FRAME)}
 
 
 def _num(info: dict, key: str, ini: Path, kind=float):
@@ -251,8 +260,8 @@ def _num(info: dict, key: str, ini: Path, kind=float):
         v = float(info[key])
     except ValueError:
         raise InputError(f"{key}={info[key]!r} is not a number", path=ini) from None
-    if not np.isfinite(v) or not lo < v <= hi:
-        raise InputError(f"{key}={info[key]} is out of range ({lo:g}, {hi:g}]", path=ini)
+    if not np.isfinite(v) or not lo <= v <= hi:
+        raise InputError(f"{key}={info[key]} is out of range [{lo:g}, {hi:g}]", path=ini)
     if kind is int and v != int(v):
         raise InputError(f"{key}={info[key]} is not a whole number", path=ini)
     return kind(v)
@@ -303,6 +312,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
                    det_path=det, gt_path=gt)
     seq.fps_known = known or vfps is not None
     seq.length_exact = exact or length is not None
+    seq.length_from = ini if length is not None else None
     return seq
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from artmotion.errors import InputError
 from artmotion.geometry import box_center
 from artmotion.io import atomic_path
+from artmotion.io.media import check_written_video
 
 __all__ = ["colour_of", "draw_boxes", "write_annotated"]
 
@@ -51,6 +52,7 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps or 25.0), (w, h))
         if not writer.isOpened():
             raise InputError("cannot open a video writer (mp4v)", path=path)
+        written = 0
         try:
             for n, img in frames:
                 img = img.copy()
@@ -69,5 +71,7 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
                                 cv2.LINE_AA)
                 cv2.putText(img, f"#{n}", (8, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
                 writer.write(img)
+                written += 1
         finally:
             writer.release()
+        check_written_video(tmp, written, where=path)    # a full disk drops frames without a word

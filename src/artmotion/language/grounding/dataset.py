@@ -18,8 +18,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError
-from artmotion.io import atomic_path, atomic_write
+from artmotion.errors import InputError, check_seed
+from artmotion.io import atomic_dir, atomic_path, atomic_write
+from artmotion.io.media import write_image
+from artmotion.io.table import read_csv
 
 COLORS = ("blue", "green", "red", "yellow")
 SHAPES = ("circle", "halfcircle", "rectangle", "rhombus", "square", "triangle", "trapezium", "hexagon")
@@ -155,10 +157,22 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
     ``table`` (shape -> counts per colour in :data:`COLORS` order) replaces Table 5.2, e.g. for a
     smaller test set.
     """
+    check_seed(seed)
     exe = espeak_path()
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder", path=out)
+    with atomic_dir(out, replace=_is_dataset) as tmp:
+        _write_examples(tmp, seed, table, exe)
+    index = out / "index.csv"
+    return index
+
+
+def _is_dataset(folder: Path) -> bool:
+    """Whether ``folder`` holds an earlier dataset and nothing else (it is then replaced whole)."""
+    names = {p.name for p in folder.iterdir()}
+    return "index.csv" in names and names <= {"images", "speech", "index.csv"}
+
+
+def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> None:
     rng = np.random.default_rng(seed)
     items = [(c, s) for c, s, n in counts(table) for _ in range(n)]
     order = rng.permutation(len(items))
@@ -168,9 +182,7 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
         ex = f"{i:03d}"
         img, (rot, scale, x, y) = render_example(rng, color, shape)
         img_rel = f"images/{ex}_{color}_{shape}.png"
-        with atomic_path(out / img_rel) as tmp:
-            if not cv2.imwrite(str(tmp), img):
-                raise InputError("cannot write image", path=out / img_rel)
+        write_image(out / img_rel, img)
         speeds = rng.integers(110, 221, size=3)
         words = (color, SPOKEN.get(shape, shape))
         rel = (f"speech/{ex}_full.wav", f"speech/{ex}_color.wav", f"speech/{ex}_shape.wav")
@@ -188,7 +200,6 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
         w = csv.DictWriter(fh, fieldnames=INDEX_COLUMNS, lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
-    return index
 
 
 def read_index(dataset: str | os.PathLike) -> list[dict]:
@@ -198,18 +209,14 @@ def read_index(dataset: str | os.PathLike) -> list[dict]:
     if not index.is_file():
         raise InputError("no index.csv (make one with 'artmotion grounding dataset')", path=index)
     need = ("id", "image", "speech", "speech_color", "speech_shape", "color", "shape")
-    with open(index, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in need if c not in (reader.fieldnames or [])]
-        if missing:
-            raise InputError(f"index lacks columns {', '.join(missing)}", path=index, line=1)
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if any(not (row.get(c) or "").strip() for c in need):
-                raise InputError("empty field", path=index, line=lineno)
-            row = {k: v.strip() for k, v in row.items() if k is not None and v is not None}
-            row["_line"] = lineno
-            rows.append(row)
+    header, table = read_csv(index, need=need, what="grounding index CSV")
+    rows = []
+    for lineno, values in table:
+        row = dict(zip(header, values))
+        if any(not row[c] for c in need):
+            raise InputError("empty field", path=index, line=lineno)
+        row["_line"] = lineno
+        rows.append(row)
     if not rows:
         raise InputError("index has no examples", path=index)
     return rows

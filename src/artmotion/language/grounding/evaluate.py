@@ -26,7 +26,7 @@ import numpy as np
 from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
-from artmotion.io import atomic_write, save_figure
+from artmotion.io import atomic_dir, atomic_write, save_figure
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.io.media import read_image
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
@@ -308,11 +308,13 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     report["seconds"] = {"features": round(t_feat, 2), "evaluation": round(t_eval, 2)}
     if out is not None:
         out = Path(out)
-        report["_unseen"], report["_example"] = un, ret["example"]
-        report["figures"] = save_figures(report, F, out) if figures else []
-        del report["_unseen"], report["_example"]
-        with atomic_write(out / "report.json") as fh:
-            json.dump(report, fh, indent=1)
+        # a new folder appears only with every figure and the report in it
+        with atomic_dir(out) as dst:
+            report["_unseen"], report["_example"] = un, ret["example"]
+            report["figures"] = save_figures(report, F, dst) if figures else []
+            del report["_unseen"], report["_example"]
+            with atomic_write(dst / "report.json") as fh:
+                json.dump(report, fh, indent=1)
         report["out"] = str(out)
     return report
 

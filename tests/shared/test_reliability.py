@@ -1,0 +1,516 @@
+"""One test per root cause of issue 13 (reliability): damaged media, bad numbers and interrupted runs
+never pass as success. Each fails on the code before the fix; the fuzz suite (test_fuzz.py) tries
+the same readers with many more damaged inputs."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import _inputs as inp
+import cv2
+import numpy as np
+import pytest
+from _inputs import assert_one_line_error, call, leftovers
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+
+def _cli(*args, timeout=120, **kw) -> subprocess.CompletedProcess:
+    """``artmotion ARGS`` in a new process (its stderr at the file-descriptor level: what FFmpeg
+    and OpenCV print there shows)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OPENCV_", "ARTMOTION_DEBUG"))}
+    return subprocess.run([sys.executable, "-m", "artmotion", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, env=dict(env, PYTHONPATH=str(SRC)), **kw)
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory) -> Path:
+    return inp.pose_model(tmp_path_factory.mktemp("model") / "m.npz")
+
+
+# -- 1. damaged media accepted ---------------------------------------------------------------------
+
+
+def test_1_damaged_media_is_never_a_success(tmp_path):
+    """A truncated JPEG in a sequence, a video damaged in the middle and a seqLength that is not
+    what is there are errors naming the file: `run` writes no run folder, `batch` marks the item
+    failed, and FFmpeg's own messages do not add lines to the one line of the error."""
+    archive = tmp_path / "archive"
+    seq = inp.sequence(archive / "jpeg")
+    victim = seq / "img1" / "000003.jpg"
+    victim.write_bytes(victim.read_bytes()[: victim.stat().st_size // 2])
+    code, _, err = call("run", seq, "--out", tmp_path / "run", "--no-video")
+    assert_one_line_error(code, err, "000003.jpg", "truncated JPEG")
+    assert not (tmp_path / "run").exists() and not leftovers(tmp_path)
+
+    avi = inp.video(tmp_path / "v.avi", n=20)
+    data = bytearray(avi.read_bytes())
+    rng = np.random.default_rng(3)
+    mid = len(data) // 2
+    data[mid:mid + 3000] = rng.integers(0, 256, 3000, dtype=np.uint8).tobytes()
+    damaged = archive / "damaged.avi"
+    damaged.write_bytes(bytes(data))
+    res = _cli("track", damaged, "--det", seq / "det" / "det.txt", "--out", tmp_path / "r.txt")
+    assert_one_line_error(res.returncode, res.stderr, "damaged.avi", "cannot be decoded")
+    assert not (tmp_path / "r.txt").exists()
+
+    short = inp.sequence(archive / "short")
+    (short / "seqinfo.ini").write_text(inp.SEQINFO.format(n=inp.N + 1))
+    code, _, err = call("track", short)
+    assert_one_line_error(code, err, "seqinfo.ini says 7 frames but img1/ has 6")
+
+    code, out, err = call("batch", archive, "--out", tmp_path / "runs", "--workers", 1)
+    assert code == 2 and "0 done, 0 skipped, 3 failed" in out, (out, err)
+    lines = err.splitlines()
+    assert len(lines) == 3 and all(line.startswith("artmotion: error: ") for line in lines), err
+    assert not list((tmp_path / "runs").glob("*")) if (tmp_path / "runs").exists() else True
+
+
+@pytest.mark.parametrize("damage", ["cut", "zeros"])
+def test_1_jpeg_damage_inside_the_image_data_is_an_error(tmp_path, damage):
+    """Bytes cut from, or zeros put into, the middle of a JPEG's image data keep its structure
+    intact; libjpeg decodes around the damage (a gray or shifted block) and says so only on
+    stderr. That is an error naming the file, and stderr holds nothing else."""
+    from artmotion.io.media import image_problem
+
+    seq = inp.sequence(tmp_path / "seq")
+    victim = seq / "img1" / "000004.jpg"
+    data = victim.read_bytes()
+    mid = (data.index(b"\xff\xda") + len(data)) // 2
+    data = data[:mid] + data[mid + 200:] if damage == "cut" else data[:mid] + bytes(200) + data[mid:]
+    victim.write_bytes(data)
+    assert image_problem(np.frombuffer(data, np.uint8)) is None       # the structure is sound
+    res = _cli("track", seq, "--out", tmp_path / "r.txt")
+    assert_one_line_error(res.returncode, res.stderr, "000004.jpg", "corrupt image data (Corrupt JPEG data")
+    assert not (tmp_path / "r.txt").exists()
+
+
+@pytest.mark.parametrize("container", ["avi", "mkv"])      # a frame index / no frame count in the file
+@pytest.mark.parametrize("declared", [inp.N - 2, inp.N + 2])
+def test_1_seqlength_is_compared_with_the_frames_of_a_video(tmp_path, container, declared):
+    seq = tmp_path / "seq"
+    inp.video(seq / f"v.{container}")
+    (seq / "seqinfo.ini").write_text(inp.SEQINFO.format(n=declared).replace("imDir=img1\n", ""))
+    det = tmp_path / "det.txt"
+    det.write_text("\n".join(inp.det_rows()) + "\n")
+    code, _, err = call("track", seq, "--det", det, "--out", tmp_path / "r.txt")
+    assert_one_line_error(code, err, f"{declared}")
+    assert "seqinfo.ini" in err or f"v.{container}" in err
+    assert not (tmp_path / "r.txt").exists()
+
+
+# -- 2. anything is a video ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name, content", [("notes.txt", b"hello\n"), ("clip.mp4", b"just some text\n" * 50),
+                                           ("frame.avi", None)])
+def test_2_only_video_content_is_a_video(tmp_path, name, content):
+    path = tmp_path / name
+    if content is None:         # a JPEG renamed .avi
+        _, buf = cv2.imencode(".jpg", inp.frames(1)[0])
+        content = buf.tobytes()
+    path.write_bytes(content)
+    code, _, err = call("track", path, "--out", tmp_path / "r.txt")
+    assert_one_line_error(code, err, name)
+    assert "video" in err and not (tmp_path / "r.txt").exists()
+
+
+# -- 3. internal errors instead of answers ---------------------------------------------------------
+
+
+def _damaged_models(model: Path, tmp: Path) -> dict[str, Path]:
+    d = dict(np.load(model))
+    out = {}
+    truncated = tmp / "truncated.npz"
+    truncated.write_bytes(model.read_bytes()[:3000])
+    out["truncated"] = truncated
+    renamed = tmp / "renamed.npz"
+    renamed.write_text("1,1,10,10,20,40,1\n")
+    out["renamed"] = renamed
+    for key, change in {"shape": ("pca_components", d["pca_components"][:, :7]),
+                        "inputs": ("X", d["X"][:, :2]),
+                        "nan": ("hypers", d["hypers"] * np.nan),
+                        "names": ("names", np.array(["opening"])),
+                        "text": ("Ys", d["Ys"].astype("U8"))}.items():
+        p = tmp / f"{key}.npz"
+        np.savez(p, **(d | {change[0]: change[1]}))
+        out[key] = p
+    return out
+
+
+@pytest.mark.parametrize("kind", ["truncated", "renamed", "shape", "inputs", "nan", "names", "text"])
+def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
+    bad = _damaged_models(model, tmp_path)[kind]
+    crops = model.parent / "m-crops"
+    code, _, err = call("pose", "predict", bad, crops, "--out", tmp_path / "p.csv")
+    assert_one_line_error(code, err, bad.name, "pose model")
+    assert not (tmp_path / "p.csv").exists()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["pose", "render", "{tmp}/r", "--poses", "2", "--seed", "-1"], "--seed"),
+    (["slam", "simulate", "--seed", "-1", "--runs", "1", "--steps", "5"], "--seed"),
+    (["grounding", "dataset", "{tmp}/g", "--seed", "-1"], "--seed"),
+    (["grounding", "eval", "{tmp}/g", "--seed", "-1"], "--seed"),
+    (["pose", "train", "{tmp}", "{tmp}/l.csv", "--model", "{tmp}/m.npz", "--seed", "-1"], "--seed"),
+    (["slam", "simulate", "--landmarks", "1000000", "--runs", "1", "--steps", "5"], "--landmarks"),
+    (["articulation", "fit", "{traj}", "--max-radius", "-1"], "--max-radius"),
+    (["articulation", "fit", "{traj}", "--min-samples", "1000000000"], "--min-samples"),
+    (["batch", "{tmp}", "--scheduler", "not a url"], "not a url"),
+])
+def test_3_bad_options_are_one_line(tmp_path, args, needle):
+    traj = tmp_path / "arc.txt"
+    traj.write_text(inp.trajectory())
+    before = sorted(tmp_path.iterdir())
+    code, _, err = call(*[a.format(tmp=tmp_path, traj=traj) for a in args])
+    assert_one_line_error(code, err, needle)
+    if needle == "--seed":
+        assert "[0, 4294967295]" in err              # NumPy's rule, stated
+    assert sorted(tmp_path.iterdir()) == before       # a failed command creates nothing
+
+
+def test_3_huge_trajectory_values_are_one_line(tmp_path):
+    traj = tmp_path / "huge.txt"
+    traj.write_text(inp.trajectory() + "1e308 1e308\n")
+    code, _, err = call("articulation", "fit", traj, "--json")
+    assert_one_line_error(code, err, "huge.txt:31", "out of range")
+
+
+@pytest.mark.parametrize("field, value", [("frame", 10**30), ("length", True), ("fps", -1.0), ("width", 1e300),
+                                          ("id", "1"), ("tracks", [1.5])])
+def test_3_manifest_numbers_out_of_range_are_refused(tmp_path, field, value):
+    run = inp.manifest()
+    if field == "frame":
+        run["events"][0]["frame"] = value
+    elif field in ("length", "fps", "width"):
+        run["sequence"][field] = value
+    elif field == "id":
+        run["track_summary"][0]["id"] = value
+    else:
+        run["sentences"][0]["tracks"] = value
+    folder = inp.run_folder(tmp_path / "run", run)
+    code, _, err = call("index", "add", folder, "--db", tmp_path / "db.sqlite")
+    assert_one_line_error(code, err, "run.json", "corrupt manifest")
+    assert not (tmp_path / "db.sqlite").exists()
+
+
+def test_3_damaged_index_is_one_line(tmp_path):
+    db = tmp_path / "db.sqlite"
+    assert call("index", "add", inp.run_folder(tmp_path / "r"), "--db", db)[0] == 0
+    data = db.read_bytes()
+    truncated = tmp_path / "truncated.sqlite"
+    truncated.write_bytes(data[: len(data) // 2])
+    corrupt = tmp_path / "corrupt.sqlite"
+    flipped = bytearray(data)
+    flipped[200::97] = bytes(len(flipped[200::97]))
+    corrupt.write_bytes(bytes(flipped))
+    for path in (truncated, corrupt):
+        before = path.read_bytes()
+        for args in (("index", "list"), ("search", "person exits"), ("index", "add", tmp_path / "r")):
+            code, _, err = call(*args, "--db", path)
+            assert_one_line_error(code, err, path.name, "damaged index")
+        assert path.read_bytes() == before
+
+
+def test_3_scheduler_that_is_no_dask_scheduler_is_one_line(tmp_path):
+    """Something that answers on the port but is not Dask (here: a plain TCP server sending text)."""
+    import socket
+    import threading
+
+    inp.sequence(tmp_path / "archive" / "a")
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+    port = srv.getsockname()[1]
+
+    def serve():
+        try:
+            while True:
+                conn, _ = srv.accept()
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n" * 64)
+                conn.close()
+        except OSError:
+            pass
+
+    threading.Thread(target=serve, daemon=True).start()
+    try:
+        t0 = time.monotonic()
+        code, _, err = call("batch", tmp_path / "archive", "--scheduler", f"tcp://127.0.0.1:{port}")
+    finally:
+        srv.close()
+    assert_one_line_error(code, err, f"tcp://127.0.0.1:{port}", "cannot reach a Dask scheduler")
+    assert time.monotonic() - t0 < 15
+
+
+# -- 4. NaN and infinity accepted ------------------------------------------------------------------
+
+
+def test_4_nan_and_infinity_are_refused(tmp_path):
+    seq = inp.sequence(tmp_path / "seq")
+    (seq / "seqinfo.ini").write_text(inp.SEQINFO.format(n=inp.N).replace("frameRate=25", "frameRate=nan"))
+    code, _, err = call("track", seq)
+    assert_one_line_error(code, err, "seqinfo.ini", "[0.001, 1000]")
+
+    res = tmp_path / "res.txt"
+    res.write_text("\n".join(inp.gt_rows()) + "\n")
+    code, _, err = call("describe", res, "--fps", "inf")
+    assert_one_line_error(code, err, "--fps", "[0.001, 1000]")
+
+    traj = tmp_path / "arc.txt"
+    traj.write_text(inp.trajectory())
+    for option in ("--noise-floor", "--max-radius"):
+        code, out, err = call("articulation", "fit", traj, "--json", option, "nan")
+        assert_one_line_error(code, err, option)
+        assert out == ""                                   # no NaN written into JSON
+
+
+def test_4_nan_model_parameters_are_refused(tmp_path, model):
+    d = dict(np.load(model))
+    for key in ("accel_var", "alpha", "var_scale", "y_mean"):
+        bad = tmp_path / f"{key}.npz"
+        np.savez(bad, **(d | {key: d[key] * np.inf}))
+        code, _, err = call("pose", "predict", bad, model.parent / "m-crops", "--out", tmp_path / "p.csv")
+        assert_one_line_error(code, err, bad.name, key)
+
+
+def test_4_empty_ground_truth_is_no_ground_truth(tmp_path):
+    res = tmp_path / "res.txt"
+    res.write_text("\n".join(inp.gt_rows()) + "\n")
+    for content in ("", "1,1,5,15,16,40,0,-1,-1,-1\n"):      # nothing, or only ignored boxes
+        gt = tmp_path / "gt.txt"
+        gt.write_text(content)
+        code, out, err = call("eval", gt, res)
+        assert_one_line_error(code, err, "gt.txt", "no ground truth")
+        assert "MOTA" not in out
+    # a run over a sequence with an empty gt/gt.txt reports no metrics instead of MOTA 0
+    from artmotion.app.pipeline import run_pipeline
+
+    seq = inp.sequence(tmp_path / "seq")
+    (seq / "gt" / "gt.txt").write_text("")
+    assert run_pipeline(seq, tmp_path / "run", video=False).metrics is None
+
+
+# -- 5. not atomic ---------------------------------------------------------------------------------
+
+
+def test_5_full_disk_leaves_no_partial_video(tmp_path, monkeypatch):
+    """OpenCV's writer drops frames silently when the disk is full; the video is checked."""
+    import artmotion.tracking.video as video_mod
+
+    real = cv2.VideoWriter
+
+    class FullDisk:
+        def __init__(self, *a):
+            self.w, self.n = real(*a), 0
+
+        def isOpened(self):
+            return self.w.isOpened()
+
+        def write(self, img):
+            self.n += 1
+            if self.n <= 3:                          # the disk fills up after three frames
+                self.w.write(img)
+
+        def release(self):
+            self.w.release()
+
+    monkeypatch.setattr(video_mod.cv2, "VideoWriter", FullDisk)
+    seq = inp.sequence(tmp_path / "seq")
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = call("track", seq, "--video", out / "ann.mp4", "--out", out / "res.txt")
+    assert_one_line_error(code, err, "ann.mp4", "disk full")
+    assert sorted(out.iterdir()) == []
+    code, _, err = call("run", seq, "--out", tmp_path / "run")
+    assert_one_line_error(code, err, "run/annotated.mp4")
+    assert not (tmp_path / "run").exists() and not leftovers(tmp_path)
+
+
+def test_5_sigterm_during_run_leaves_no_folder(tmp_path):
+    seq = inp.sequence(tmp_path / "seq", n=400)
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "artmotion", "run", str(seq), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(SRC)))
+    deadline = time.monotonic() + 120
+    while not list(tmp_path.glob(".run.*/.annotated.mp4.*")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)                    # until the annotated video is being written
+    assert proc.poll() is None, "finished before it could be interrupted"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.count("\n") == 1 and err.startswith("artmotion: terminated"), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["seq"], "a run folder or a temporary was left"
+
+
+def test_5_pose_model_is_checked_before_tracking(tmp_path, model, monkeypatch):
+    """A model whose arrays do not fit together used to load, and failed only after the whole
+    video was tracked."""
+    from artmotion.app.pipeline import run_pipeline
+    from artmotion.errors import InputError
+    from artmotion.tracking import api
+
+    bad = _damaged_models(model, tmp_path)["shape"]
+
+    def tracked(*a, **k):
+        raise AssertionError("tracked before the model was checked")
+
+    monkeypatch.setattr(api, "track", tracked)
+    with pytest.raises(InputError, match="shape.npz: corrupt artmotion pose model"):
+        run_pipeline(inp.sequence(tmp_path / "seq"), tmp_path / "run", pose_model=bad)
+    assert not (tmp_path / "run").exists()
+
+
+def test_5_failed_rendering_leaves_nothing(tmp_path, monkeypatch):
+    from artmotion.io import atomic
+
+    count = {"n": 0}
+    real_replace = atomic.os.replace
+
+    def replace(src, dst):                   # the disk is full at the fourth file
+        count["n"] += 1
+        if count["n"] == 4:
+            raise OSError(errno.ENOSPC, "No space left on device", str(src))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    code, _, err = call("pose", "render", tmp_path / "r", "--poses", 3)
+    assert_one_line_error(code, err, "No space left on device")
+    assert str(tmp_path / "r") in err
+    assert sorted(tmp_path.iterdir()) == []
+
+
+# -- 6. silently ignored input ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("event, needle", [
+    ({"type": "teleport", "frame": 3, "tracks": [1]}, "unknown event type 'teleport'"),
+    ({"type": "enter", "frame": 3, "tracks": [1], "side": "up"}, "unknown side 'up'"),
+    ({"type": "enter", "frame": True, "tracks": [1]}, "'frame'"),
+    ({"type": "merge", "frame": 3, "tracks": [1, 2], "group": "x"}, "'group'"),
+    ('{"type": "enter", "frame": 3, "tracks": [1], "x": 1e999}', "'x'"),      # JSON's 1e999 reads as infinity
+    ('{"type": "enter", "frame": 3, "tracks": [1], "y": NaN}', "NaN"),
+])
+def test_6_events_that_do_not_fit_are_errors(tmp_path, event, needle):
+    res = tmp_path / "res.txt"
+    res.write_text("\n".join(inp.gt_rows()) + "\n")
+    ev = tmp_path / "ev.jsonl"
+    ev.write_text(json.dumps(inp.EVENTS[0]) + "\n" + (event if isinstance(event, str) else json.dumps(event)) + "\n")
+    code, _, err = call("describe", res, "--events", ev)
+    assert_one_line_error(code, err, "ev.jsonl:2", needle)
+
+
+def test_6_duplicate_csv_columns_and_a_folder_for_detections(tmp_path):
+    res = tmp_path / "res.txt"
+    res.write_text("\n".join(inp.gt_rows()) + "\n")
+    pred = tmp_path / "PRED.csv"
+    pred.write_text("image,opening,opening_std,opening,opening_std\n000001.png,10,1,50,1\n000002.png,20,1,60,1\n")
+    code, _, err = call("describe", res, "--pose", pred)
+    assert_one_line_error(code, err, "PRED.csv:1", "'opening' appears more than once")
+
+    seq = inp.sequence(tmp_path / "seq")
+    shutil.rmtree(seq / "det")
+    (seq / "det" / "det.txt").mkdir(parents=True)        # not a file: no silent fall-back to HOG
+    code, _, err = call("track", seq)
+    assert_one_line_error(code, err, "det/det.txt", "not a file")
+
+    index = tmp_path / "ds" / "index.csv"
+    index.parent.mkdir()
+    index.write_text("id,image,speech,speech_color,speech_shape,color,shape,color\n"
+                     "000,a.png,a.wav,b.wav,c.wav,red,square,blue\n")
+    code, _, err = call("grounding", "eval", index.parent)
+    assert_one_line_error(code, err, "index.csv:1", "'color' appears more than once")
+
+
+# -- 7. messages -----------------------------------------------------------------------------------
+
+
+def test_7_messages_name_the_file_never_a_temporary(tmp_path, monkeypatch):
+    from artmotion.io import atomic
+
+    def replace(src, dst):                   # a write error reported on the temporary file
+        raise OSError(errno.ENOSPC, "No space left on device", str(src))
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    seq = inp.sequence(tmp_path / "seq")
+    code, _, err = call("track", seq, "--out", tmp_path / "res.txt")
+    assert_one_line_error(code, err, f"{tmp_path / 'res.txt'}: cannot write: No space left on device")
+    code, _, err = call("run", seq, "--out", tmp_path / "run", "--no-video")
+    assert_one_line_error(code, err, str(tmp_path / "run"), "No space left on device")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["seq"]
+
+
+def test_7_internal_error_is_one_line_with_a_hint(tmp_path, monkeypatch):
+    from artmotion.tracking import api
+
+    def bug(*a, **k):
+        raise ZeroDivisionError("division by zero\nsecond line")
+
+    monkeypatch.setattr(api, "open_sequence", bug)
+    code, _, err = call("track", tmp_path)
+    assert code == 1 and err.count("\n") == 1, err
+    assert err.startswith("artmotion: internal error: ZeroDivisionError") and "please report" in err
+
+
+def test_7_native_library_messages_stay_off_stderr(tmp_path):
+    """FFmpeg prints '[mjpeg @ 0x...] overread 8' for a truncated video; OpenCV '[ WARN:0] ...'."""
+    avi = inp.video(tmp_path / "v.avi", n=20)
+    half = tmp_path / "half.avi"
+    half.write_bytes(avi.read_bytes()[: avi.stat().st_size * 2 // 3])
+    det = tmp_path / "det.txt"
+    det.write_text("\n".join(inp.det_rows(20)) + "\n")
+    res = _cli("track", half, "--det", det)
+    assert_one_line_error(res.returncode, res.stderr, "half.avi")
+
+
+# -- 8. interruption -------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_8_ctrl_c_in_batch_is_one_line_with_the_counts(tmp_path):
+    archive = tmp_path / "archive"
+    for i in range(8):
+        inp.sequence(archive / f"s{i}", n=150)
+    out = tmp_path / "runs"
+    proc = subprocess.Popen([sys.executable, "-m", "artmotion", "batch", str(archive), "--out", str(out),
+                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(SRC)), start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not list(out.glob("*/run.json")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)                     # one item finished
+    assert proc.poll() is None, "the batch finished before it could be interrupted"
+    os.killpg(proc.pid, signal.SIGINT)       # Ctrl-C in a terminal: the whole process group
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("artmotion: interrupted: ") and " of 8 items finished (kept)" in err and "not finished" in err
+    finished = {p.parent.name for p in out.glob("*/run.json")}
+    assert finished and all((out / name / "results.txt").is_file() for name in finished)
+    assert not [p for p in out.iterdir() if p.name not in finished], "an unfinished run or temporary was left"
+
+
+# -- 9. index entries lost -------------------------------------------------------------------------
+
+
+def test_9_a_batch_of_same_named_sequences_indexes_every_one(tmp_path):
+    """The same sequence copied to four folders (each called 'tiny' by its seqinfo.ini): the batch
+    indexes four runs, and the index keeps four videos, listed with their paths."""
+    archive = tmp_path / "archive"
+    for copy in ("a", "b", "c", "d"):
+        inp.sequence(archive / copy)
+    db = tmp_path / "db.sqlite"
+    code, out, err = call("batch", archive, "--index", db, "--workers", 1)
+    assert code == 0 and "indexed 4 runs" in out, (out, err)
+    code, out, err = call("index", "list", "--db", db)
+    lines = out.strip().splitlines()
+    assert code == 0 and len(lines) == 4, out
+    assert sorted(line.split(" (")[1].split("):")[0] for line in lines) == [
+        str((archive / copy).resolve()) for copy in ("a", "b", "c", "d")]

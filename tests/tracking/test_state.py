@@ -176,7 +176,7 @@ def test_noise_estimator_recovers_both_noises_despite_outliers():
     # sampling noise), and the estimate stays well under the centre's
     np.testing.assert_allclose(est.accel_sd()[:2], true_acc[:2], rtol=0.3)
     assert np.all(est.accel_sd()[2:] < 0.3 * true_acc[0])
-    mean_based = np.sqrt(np.mean(est._d1 ** 2, 0) / 6)
+    mean_based = np.sqrt(np.mean(est._d2[0, :est.n], 0) / 6)   # squared lag-1 differences
     assert np.all(mean_based > 1.2 * true_sd)
     # without data the estimates are the priors
     fresh = NoiseEstimator([0.05] * 4, [1.0] * 4, dt)

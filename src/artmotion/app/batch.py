@@ -111,11 +111,16 @@ def _start_local_cluster(workers: int, processes: bool):
     return cluster
 
 
-def _quietly_close(*closables) -> None:
-    """Close a Dask client and cluster after an interruption, without their shutdown messages."""
+def _silence_dask() -> None:
+    """No more of Dask's log messages (its shutdown after an interruption is noisy)."""
     import logging
 
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
+
+
+def _quietly_close(*closables) -> None:
+    """Close a Dask client and cluster after an interruption, without their shutdown messages."""
+    _silence_dask()
     for c in closables:
         if c is not None:
             try:
@@ -206,11 +211,11 @@ def _remove_stale_temporaries(out_dirs: list[str]) -> None:
     or reported failed, and nothing else writes such names."""
     import shutil
 
-    for od in map(Path, out_dirs):
-        if od.parent.is_dir():
-            for tmp in od.parent.glob(f".{od.name}.*.tmp"):
-                if tmp.is_dir() and len(tmp.name) == len(od.name) + 14:   # "." + name + ".xxxxxxxx.tmp"
-                    shutil.rmtree(tmp, ignore_errors=True)
+    from artmotion.io.atomic import stale_dirs
+
+    for od in out_dirs:
+        for tmp in stale_dirs(od):
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def run_batch(
@@ -276,9 +281,7 @@ def run_batch(
                     if on_progress:
                         on_progress(outcome, len(report.outcomes), total)
             except Interrupted as exc:
-                import logging
-
-                logging.getLogger("distributed").setLevel(logging.CRITICAL)   # no shutdown noise
+                _silence_dask()
                 finished = {o.item for o in report.outcomes}
                 not_run = [it for it, _ in todo if it not in finished]
                 client.cancel(list(futures))

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from artmotion.errors import InputError
+from artmotion.io.files import read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
 APPLICATION_ID = 0x41524D54
@@ -335,15 +336,8 @@ def _canon_verb(verb: str | None) -> str | None:
 
 def check_index(path: Path) -> None:
     """Raise unless ``path`` is an artmotion index (read without writing a byte)."""
-    if not path.is_file():
-        raise InputError("not a file", path=path)
-    try:
-        size = path.stat().st_size
-        with open(path, "rb") as fh:
-            head = fh.read(100)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
-    if size == 0:
+    head = read_head(path, 100)
+    if not head:
         raise InputError("not an artmotion index (empty file)", path=path)
     if not head.startswith(b"SQLite format 3\x00") or len(head) < 100:
         raise InputError("not an artmotion index (not a SQLite database)", path=path)
@@ -352,6 +346,7 @@ def check_index(path: Path) -> None:
     page = int.from_bytes(head[16:18], "big")
     page = 65536 if page == 1 else page
     pages = int.from_bytes(head[28:32], "big")                  # the database's size in pages
+    size = path.stat().st_size
     if pages and size < page * pages:
         raise InputError(f"damaged index (truncated: {size} of its {page * pages} bytes); build a new one with "
                          "'artmotion index add'", path=path)

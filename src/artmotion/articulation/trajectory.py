@@ -25,6 +25,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.geometry.rotations import axis_angle_to_matrix
+from artmotion.io.files import read_text
 
 __all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
 
@@ -52,15 +53,7 @@ class Trajectory:
 def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
     path = os.fspath(path)
-    if not os.path.isfile(path):          # a folder, a device or a pipe would be read forever
-        raise InputError("no such file" if not os.path.exists(path) else "not a file", path=path)
-    try:
-        with open(path, encoding="utf-8-sig") as fh:
-            text = fh.read()
-    except UnicodeDecodeError as exc:
-        raise InputError("not a text file", path=path) from exc
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from exc
+    text = read_text(path, "a trajectory file")
     rows, lines = [], []
     header = None
     ncol = None

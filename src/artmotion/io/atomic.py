@@ -7,7 +7,9 @@ Folders of outputs are built the same way (:func:`atomic_dir`).
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -140,6 +142,17 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     finally:
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def stale_dirs(path: str | os.PathLike) -> list[Path]:
+    """The folders :func:`atomic_dir` was building next to ``path`` when the process writing them
+    was killed (``.NAME.xxxxxxxx.tmp``; not ``.old.tmp``, which may hold the previous outputs):
+    nothing else writes such names. Remove them only when no writer of ``path`` can still run."""
+    path = Path(path)
+    pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}\.tmp")
+    if not path.parent.is_dir():
+        return []
+    return [p for p in path.parent.glob(f".{glob.escape(path.name)}.*.tmp") if p.is_dir() and pattern.fullmatch(p.name)]
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Path:

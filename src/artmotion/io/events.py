@@ -18,6 +18,7 @@ from typing import Iterable
 
 from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
+from artmotion.io.files import read_text
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 
 REQUIRED = ("type", "frame", "tracks")
@@ -62,17 +63,8 @@ def event_problem(ev) -> str | None:
 def read_events(path: str | os.PathLike) -> list[dict]:
     """Read and validate an events file; raise :class:`InputError` naming file and line."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError("no such file" if not path.exists() else "not a file", path=path)
     events = []
-    try:
-        with open(path, encoding="utf-8-sig") as fh:
-            lines = list(fh)
-    except UnicodeDecodeError:
-        raise InputError("not UTF-8 text (an events file is JSON lines)", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
-    for lineno, line in enumerate(lines, start=1):
+    for lineno, line in enumerate(read_text(path, "an events file").split("\n"), start=1):
         if not line.strip():
             continue
         try:

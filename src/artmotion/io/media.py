@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError
+from artmotion.io.files import read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video", "image_problem",
            "read_image", "write_image"]
@@ -224,15 +225,7 @@ def check_video(path: str | os.PathLike) -> Path:
     """``path`` if it is a file whose content is a video container, else an :class:`InputError`
     saying what it is (missing, a folder, empty, an image, not a video)."""
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path=path)
-    if not path.is_file():
-        raise InputError("not a file", path=path)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+    head = read_head(path, 16)
     if not head:
         raise InputError("empty file", path=path)
     if head[:3] == b"\xff\xd8\xff" or head[:8] == _PNG_SIGNATURE:

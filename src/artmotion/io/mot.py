@@ -10,6 +10,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
+from artmotion.io.files import read_text
 
 MOT_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "X", "Y", "Z")
 #: the largest frame number of a sequence (also the largest ``seqLength`` of a seqinfo.ini)
@@ -31,14 +32,7 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
     (``require_sorted``), text that is not UTF-8.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError("no such file" if not path.exists() else "not a file", path=path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError("not UTF-8 text (a MOTChallenge file is text)", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    text = read_text(path, "a MOTChallenge file")
     rows: list[list[float]] = []
     last_frame = -math.inf
     for lineno, raw in enumerate(text.splitlines(), start=1):

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Sequence
 
 from artmotion.errors import InputError, check_range
+from artmotion.io.files import read_text
 
 __all__ = ["MAX_ANGLE", "cell_number", "read_csv"]
 
@@ -30,16 +31,7 @@ def read_csv(path: str | os.PathLike, need: Sequence[str] = (), what: str = "CSV
     names and values are stripped of spaces, blank rows skipped. ``need``: columns that must be
     there. ``what`` names the kind of file in messages."""
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path=path)
-    if not path.is_file():
-        raise InputError("not a file", path=path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"not UTF-8 text (a {what} is text)", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    text = read_text(path, f"a {what}")
     reader = csv.reader(io.StringIO(text, newline=""))
     rows: list[tuple[int, list[str]]] = []
     try:

@@ -17,6 +17,7 @@ import numpy as np
 from artmotion.errors import InputError
 from artmotion.filters import KalmanFilter, constant_velocity
 from artmotion.io import atomic_path
+from artmotion.io.files import read_head
 from artmotion.pose import features as F
 from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
@@ -229,16 +230,7 @@ class PoseRegressor:
         import zlib
 
         path = Path(path)
-        if not path.exists():
-            raise InputError("model file not found", path=path)
-        if not path.is_file():
-            raise InputError("not a file", path=path)
-        try:
-            with open(path, "rb") as fh:
-                head = fh.read(4)
-        except OSError as exc:
-            raise InputError(f"cannot read: {exc.strerror}", path=path) from None
-        if head != b"PK\x03\x04":
+        if read_head(path, 4, missing="model file not found") != b"PK\x03\x04":
             raise InputError("not an artmotion pose model (not a NumPy .npz file)", path=path)
         try:
             with np.load(path, allow_pickle=False) as z:

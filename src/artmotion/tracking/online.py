@@ -37,7 +37,7 @@ from artmotion.tracking.entry_exit import track_ends
 from artmotion.tracking.experts import Entity, Frame
 from artmotion.tracking.groups import Group, resolve_split, update_groups
 from artmotion.tracking.pote import PoTE
-from artmotion.tracking.state import DETECTED, GROUP, LOST, TENTATIVE, KINDS, KalmanBank, NoiseEstimator, boxes_to_z, z_to_boxes
+from artmotion.tracking.state import DETECTED, GROUP, LOST, TENTATIVE, KINDS, KalmanBank, NoiseEstimator, boxes_to_z, warp_matrix, z_to_boxes
 
 __all__ = ["KINDS", "OnlineTracker", "Track"]
 
@@ -82,17 +82,6 @@ def release_history(t: Track) -> None:
     t.first_box = z_to_boxes(t.xf[0][:4])[0] if t.xf else t.entity.box.copy()
     t.xp, t.Pp, t.xf, t.Pf, t.warps = [], [], [], [], []
     t.frames, t.kinds, t.scores = [], [], []
-
-
-def _warp_matrix(A: np.ndarray) -> np.ndarray:
-    M = A[:, :2]
-    s = float(np.sqrt(abs(np.linalg.det(M))))
-    T = np.zeros((8, 8))
-    T[:2, :2] = M
-    T[2, 2] = T[3, 3] = s
-    T[4:6, 4:6] = M
-    T[6, 6] = T[7, 7] = s
-    return T
 
 
 class OnlineTracker:
@@ -213,7 +202,7 @@ class OnlineTracker:
             A = self.camera.step(frame.grey, frame.scale,
                                  exclude=[t.box for t in tracks if t.state == "confirmed"])
             if A is not None:
-                warp = _warp_matrix(A)
+                warp = warp_matrix(A)
                 self.bank.warp(slots, A)
             frame.shared["camera_moving"] = self.camera.moving
         self.bank.predict(slots, self.dt)

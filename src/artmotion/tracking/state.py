@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NoiseEstimator", "DETECTED", "GROUP", "INTERPOLATED", "KINDS", "LOST", "TENTATIVE", "KalmanBank", "boxes_to_z", "z_to_boxes"]
+__all__ = ["NoiseEstimator", "DETECTED", "GROUP", "INTERPOLATED", "KINDS", "LOST", "TENTATIVE", "KalmanBank", "boxes_to_z", "warp_matrix", "z_to_boxes"]
 
 #: what supports a track's state on a frame: an assigned detection, the image experts and motion
 #: only (lost), motion inside a group node, a detection before the track was confirmed, the
@@ -31,6 +31,17 @@ def boxes_to_z(boxes) -> np.ndarray:
     z = b.copy()
     z[:, :2] += 0.5 * b[:, 2:4]
     return z
+
+
+def warp_matrix(A: np.ndarray) -> np.ndarray:
+    """The 8×8 map of the state ``cx, cy, w, h`` and their velocities under the camera's motion
+    ``A`` (2×3 similarity): centres and their velocities rotate and scale, sizes scale."""
+    M = A[:, :2]
+    s = float(np.sqrt(abs(np.linalg.det(M))))
+    T = np.zeros((8, 8))
+    T[:2, :2] = T[4:6, 4:6] = M
+    T[2, 2] = T[3, 3] = T[6, 6] = T[7, 7] = s
+    return T
 
 
 def z_to_boxes(z) -> np.ndarray:
@@ -142,13 +153,7 @@ class KalmanBank:
         if not len(slots):
             return
         A = np.asarray(A, dtype=float)
-        M = A[:, :2]
-        s = float(np.sqrt(abs(np.linalg.det(M))))
-        T = np.zeros((8, 8))
-        T[:2, :2] = M
-        T[2, 2] = T[3, 3] = s
-        T[4:6, 4:6] = M
-        T[6, 6] = T[7, 7] = s
+        T = warp_matrix(A)
         x = self.x[slots] @ T.T
         x[:, :2] += A[:, 2]
         self.x[slots] = x
@@ -183,8 +188,8 @@ class NoiseEstimator:
     of each track's detections on consecutive frames. Under the model (white acceleration of
     variance ``q``, detections with independent noise of variance ``r``), the second difference
     at lag ``L``, ``z[k+L] - 2 z[k] + z[k-L]``, has variance ``L (4L² - 1) / 6 · Δt⁴ q + 6 r``:
-    lags 1 and 3 give ``V1 = Δt⁴ q / 2 + 6 r`` and ``V3 = 35 / 2 · Δt⁴ q + 6 r``, two equations in
-    the two unknowns. Each variance is the median of the squared differences over the last
+    lag 1 (``V1 = Δt⁴ q / 2 + 6 r``) and the lag of ``horizon`` seconds (:attr:`lag`, at least 3)
+    give two equations in the two unknowns. Each variance is the median of the squared differences over the last
     ``window`` samples divided by the median of χ²₁ (a wrong association or a box cut by an
     occluder does not inflate it). The configured noise is a prior worth ``prior_n`` samples; the
     estimates never go below ``floor`` (relative standard deviations).
@@ -200,12 +205,14 @@ class NoiseEstimator:
         self.window = int(window)
         self.prior_n = float(prior_n)
         self.floor = float(floor)
-        self._d1 = np.zeros((0, 4))
-        self._d3 = np.zeros((0, 4))
+        # squared second differences at lag 1 and at the long lag: a ring of the last ``window``
+        self._d2 = np.zeros((2, self.window, 4))
+        self._n = self._next = 0
         self._recent: dict[int, list] = {}
         #: the long lag, in frames: the time scale over which the acceleration is measured
         self.lag = max(3, int(round(horizon / self.dt)))
         self._r, self._q = self.prior_r.copy(), self.prior_q.copy()
+        self._stale = False
 
     @staticmethod
     def _scale(z: np.ndarray) -> np.ndarray:
@@ -226,11 +233,11 @@ class NoiseEstimator:
         if len(buf) < 2 * L + 1:
             return
         zs = [b[1] for b in buf]
-        d1 = (zs[-1] - 2 * zs[-2] + zs[-3]) / self._scale(zs[-2])
-        d3 = (zs[-1] - 2 * zs[-1 - L] + zs[-1 - 2 * L]) / self._scale(zs[-1 - L])
-        self._d1 = np.concatenate([self._d1[-self.window + 1:], d1[None]])
-        self._d3 = np.concatenate([self._d3[-self.window + 1:], d3[None]])
-        self._r, self._q = self._estimate()
+        self._d2[0, self._next] = ((zs[-1] - 2 * zs[-2] + zs[-3]) / self._scale(zs[-2])) ** 2
+        self._d2[1, self._next] = ((zs[-1] - 2 * zs[-1 - L] + zs[-1 - 2 * L]) / self._scale(zs[-1 - L])) ** 2
+        self._next = (self._next + 1) % self.window
+        self._n = min(self._n + 1, self.window)
+        self._stale = True      # estimated when asked for: once per frame, not per detection
 
     def forget(self, key: int) -> None:
         """Track ``key`` ended."""
@@ -238,22 +245,26 @@ class NoiseEstimator:
 
     @property
     def n(self) -> int:
-        return len(self._d1)
+        return self._n
 
-    def _estimate(self) -> tuple[np.ndarray, np.ndarray]:
+    def _estimate(self) -> None:
+        if not self._stale:
+            return
         c, dt4 = self._MEDIAN_CHI2_1, self.dt ** 4
-        v1 = np.median(self._d1 ** 2, axis=0) / c
-        v3 = np.median(self._d3 ** 2, axis=0) / c
+        v1, vL = np.median(self._d2[:, :self._n], axis=1) / c
         L = self.lag
-        q = np.maximum(v3 - v1, 0.0) / ((L * (4 * L * L - 1) / 6.0 - 0.5) * dt4)
+        q = np.maximum(vL - v1, 0.0) / ((L * (4 * L * L - 1) / 6.0 - 0.5) * dt4)
         r = np.maximum(v1 - 0.5 * dt4 * q, 0.0) / 6.0
-        n, p = self.n, self.prior_n
-        return (n * r + p * self.prior_r) / (n + p), (n * q + p * self.prior_q) / (n + p)
+        n, p = self._n, self.prior_n
+        self._r, self._q = (n * r + p * self.prior_r) / (n + p), (n * q + p * self.prior_q) / (n + p)
+        self._stale = False
 
     def sd(self) -> np.ndarray:
         """Relative standard deviations of a detection's cx, cy, w, h."""
+        self._estimate()
         return np.sqrt(np.maximum(self._r, self.floor ** 2))
 
     def accel_sd(self) -> np.ndarray:
         """Relative standard deviations of the acceleration of cx, cy, w, h (box sizes per s²)."""
+        self._estimate()
         return np.sqrt(np.maximum(self._q, self.floor ** 2))

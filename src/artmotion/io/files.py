@@ -1,0 +1,42 @@
+"""Reading input files with one-line errors: the file must exist and be a regular file (a folder,
+a device or a pipe would be read forever), and a read that fails names the file."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from artmotion.errors import InputError
+
+__all__ = ["existing_file", "read_head", "read_text"]
+
+
+def existing_file(path: str | os.PathLike, missing: str = "no such file") -> Path:
+    """``path`` as a :class:`~pathlib.Path` if it is a regular file, else an :class:`InputError`
+    (``missing`` when nothing is there, "not a file" otherwise)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(missing if not path.exists() else "not a file", path=path)
+    return path
+
+
+def read_head(path: str | os.PathLike, n: int, missing: str = "no such file") -> bytes:
+    """The first ``n`` bytes of the regular file ``path`` (fewer if it is shorter)."""
+    path = existing_file(path, missing)
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(n)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+
+
+def read_text(path: str | os.PathLike, what: str) -> str:
+    """The UTF-8 text (a byte-order mark dropped) of the regular file ``path``; ``what`` names the
+    kind of file in the message when it is not text ("a MOTChallenge file")."""
+    path = existing_file(path)
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"not UTF-8 text ({what} is text)", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None

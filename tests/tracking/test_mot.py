@@ -229,3 +229,35 @@ def test_camera_motion_keeps_a_track_through_a_pan(tmp_path):
     without = track(root, config=TrackerConfig(camera=False))
     assert with_cam.num_tracks == 1, with_cam.tracks[:, :2]
     assert without.num_tracks == 2          # the prediction stays where the person stood
+
+
+@pytest.mark.parametrize("every", [2, 3])
+def test_detector_on_every_kth_frame_is_carried_between(every):
+    """Frames the detector skipped (detections None) are predicted, count no misses and are
+    filled by the offline pass: one track with a box on every frame; a frame where the detector
+    ran and found nothing is a miss (counted in frames of time, so max_lost keeps its meaning)."""
+    from artmotion.tracking import MultiObjectTracker, TrackerConfig, run_tracker
+
+    frames, truth = moving_blob(n=30)
+    dets = {k + 1: np.array([[*truth[k], 0.95]]) for k in range(30)}
+    fps = 10.0
+    t = MultiObjectTracker(fps, W, H, config=TrackerConfig())
+    n = run_tracker(t, ((k + 1, f) for k, f in enumerate(frames)), dets, detect_every=every)
+    rows, _ = t.finish(n)
+    assert len(np.unique(rows[:, 1])) == 1
+    last = 1 + every * ((30 - 1) // every)          # the last frame the detector ran on
+    assert set(rows[:, 0].astype(int)) == set(range(1, last + 1))
+    err = np.abs(rows[np.argsort(rows[:, 0]), 2:6] - np.array(truth[:last])).max()
+    assert err < 6.0, err
+    # the detector runs but finds nothing after frame 10: the track is lost after max_lost s
+    # whatever k is (misses are frames of time, not detector runs)
+    gone = {f: (d if f <= 10 else np.zeros((0, 5))) for f, d in dets.items()}
+    ends = []
+    for k in (1, every):
+        t = MultiObjectTracker(fps, W, H, config=TrackerConfig(max_lost=1.0))
+        live: list[int] = []
+        run_tracker(t, ((j + 1, f) for j, f in enumerate(frames)), gone, detect_every=k,
+                    on_frame=lambda _, t=t, live=live: live.append(len(t.tracks)))
+        ends.append(max(j + 1 for j, m in enumerate(live) if m))
+    # lost after frame 10 for 1 s (10 frames); with k > 1 the end is seen at a detected frame
+    assert 19 <= ends[0] <= 22 and abs(ends[1] - ends[0]) < every, ends

@@ -125,14 +125,14 @@ def test_corrupt_frame_mid_sequence(run_cli, tmp_path):
     assert not out.exists()
 
 
-def test_without_detections_the_hog_detector_runs(tmp_path):
+def test_without_detections_a_built_in_detector_runs(tmp_path):
     # a folder of images with no det/: the built-in detector is used (it finds no people in blobs)
     frames, _ = moving_blob(n=3)
     folder = tmp_path / "imgs"
     folder.mkdir()
     for k, f in enumerate(frames, start=1):
         cv2.imwrite(str(folder / f"f{k:03d}.png"), f)
-    res = track(folder)
+    res = track(folder, detector="hog")
     assert res.detector == "hog" and res.frames == 3
     assert res.tracks.shape[1] == 10
 

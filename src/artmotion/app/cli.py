@@ -10,6 +10,7 @@ from typing import Optional
 import typer
 
 from artmotion.errors import InputError
+from artmotion.tracking.config import DETECT_EVERY
 
 DEFAULT_DB = "artmotion-index.sqlite"
 
@@ -68,6 +69,11 @@ def run_cmd(
     source: Path = typer.Argument(..., help="MOTChallenge sequence folder, video file or image folder."),
     out: Optional[Path] = typer.Option(None, "--out", help="Run folder [default: runs/NAME]."),
     det: Optional[Path] = typer.Option(None, "--det", help="Detections (MOTChallenge text) instead of the built-in detector."),
+    detector: str = typer.Option("auto", "--detector", metavar="auto|ssdlite|hog",
+                                 help="Built-in person detector when there are no detections (auto: ssdlite when "
+                                      "installed, else hog)."),
+    detect_every: int = typer.Option(DETECT_EVERY, "--detect-every", metavar="K",
+                                     help="Run the built-in detector on every K-th frame."),
     object_class: str = typer.Option("person", "--class", help="Object class named in sentences."),
     video: bool = typer.Option(True, "--video/--no-video", help="Also write annotated.mp4."),
     index: Optional[Path] = typer.Option(None, "--index", help="Add the run to this SQLite event index."),
@@ -82,7 +88,7 @@ def run_cmd(
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
-                       pose_model=pose_model)
+                       pose_model=pose_model, detector=detector, detect_every=detect_every)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s")
     for s in res.sentences[:10]:
@@ -153,7 +159,8 @@ def search_cmd(
         raise typer.Exit(1)
     for h in hits:
         how = "" if h.match == "structured" else "  (text match)"
-        typer.echo(f"{h.score:5.2f}  {_label(h.video, h.source, shared)}  frames {h.frame_start}-{h.frame_end}  tracks {h.tracks}  {h.sentence}{how}")
+        typer.echo(f"{h.score:5.2f}  {_label(h.video, h.source, shared)}  frames {h.frame_start}-{h.frame_end}  "
+                   f"tracks {h.tracks}  {h.sentence}{how}")
 
 
 def batch_cmd(

@@ -30,6 +30,7 @@ from artmotion.io import atomic_dir, atomic_write, read_mot, write_events, write
 from artmotion.io.events import event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
+from artmotion.tracking.config import DETECT_EVERY
 
 MANIFEST = "run.json"
 
@@ -134,12 +135,16 @@ def run_pipeline(
     video: bool = True,
     pose_model: str | os.PathLike | None = None,
     batch: str | None = None,
+    detector: str = "auto",
+    detect_every: int = DETECT_EVERY,
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
     With ``pose_model`` (from ``artmotion pose train``) every track's crops also go through the
     pose regressor, and the tool's opening and closing become sentences. ``batch``: the id of the
-    batch that runs it, kept in the manifest (a batch never runs an item twice).
+    batch that runs it, kept in the manifest (a batch never runs an item twice). ``detector``:
+    the built-in detector when ``source`` has no detections (``auto``, ``ssdlite``, ``hog``), run
+    on every ``detect_every``-th frame.
     """
     from artmotion.tracking import open_sequence
 
@@ -153,8 +158,8 @@ def run_pipeline(
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run) as dst:
-        manifest, tracks = _run_into(dst, seq, source, fingerprint, det, object_class, experts, progress, video,
-                                     pose, gt)
+        manifest, tracks = _run_into(dst, seq, source, fingerprint, det, (detector, detect_every), object_class,
+                                     experts, progress, video, pose, gt)
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
@@ -174,14 +179,14 @@ def _is_run(folder: Path) -> bool:
     return MANIFEST in names and names <= RUN_FILES
 
 
-def _run_into(out: Path, seq, source, fingerprint: str, det, object_class: str, experts, progress: bool,
-              video: bool, pose, gt) -> tuple[dict, np.ndarray]:
+def _run_into(out: Path, seq, source, fingerprint: str, det, detector: tuple[str, int], object_class: str,
+              experts, progress: bool, video: bool, pose, gt) -> tuple[dict, np.ndarray]:
     """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
     written yet) and the tracks."""
     from artmotion.app.report import write_report
     from artmotion.tracking import evaluate, track
 
-    kwargs = {"det": det, "progress": progress}
+    kwargs: dict = {"det": det, "detector": detector[0], "detect_every": detector[1], "progress": progress}
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
         # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and
@@ -216,6 +221,7 @@ def _run_into(out: Path, seq, source, fingerprint: str, det, object_class: str, 
         "sequence": {"length": seq.length, "fps": seq.fps, "width": seq.width, "height": seq.height},
         "files": {"results": "results.txt", "events": "events.jsonl", "sentences": "sentences.txt",
                   "report": "report.html", **({"video": "annotated.mp4"} if video else {})},
+        "detections": result.detector,
         "track_summary": track_summary(tracks),
         "events": events,
         "sentences": sentences,
@@ -274,7 +280,7 @@ def _manifest_problem(run) -> str | None:
             return f"no {key!r}"
     if not isinstance(run["name"], str) or not run["name"]:
         return "'name' is not a non-empty string"
-    for key in ("source", "fingerprint", "batch"):
+    for key in ("source", "fingerprint", "batch", "detections"):
         if key in run and run[key] is not None and not isinstance(run[key], str):
             return f"{key!r} is not a string"
     seq = run.get("sequence", {})

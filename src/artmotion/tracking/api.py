@@ -71,54 +71,89 @@ def _check_experts(experts) -> tuple:
 
 
 def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: int = 1, decode: int = 1,
-                detector=None, on_frame=None) -> int:
+                detector=None, on_frame=None, detect_every: int = 1) -> int:
     """Feed ``frames`` (``(number, BGR image)`` pairs, decoded ``decode`` times smaller than the
     sequence) to ``tracker`` one by one; the experts look at images ``reduce`` times smaller.
     Detections come from ``detections`` (frame -> ``(N, 5)`` array) or, when ``detector`` is
-    given, from running it on every frame. Returns the number of the last frame."""
+    given, from running it on every ``detect_every``-th frame (the experts and the motion model
+    carry the tracks in between), one frame ahead on a worker thread (OpenCV releases Python's
+    lock while it detects, so detection overlaps decoding and tracking). Returns the number of
+    the last frame."""
     from artmotion.tracking.experts import Frame
 
     shared: dict = {}
     n = 0
-    for n, img in frames:
-        d = detector(img) if detector is not None else detections.get(n)
+    for n, img, d in _with_detections(frames, detections, detector, detect_every):
         tracker.step(Frame(n, img, d, scale=1.0 / reduce, shared=shared, image_scale=1.0 / decode))
         if on_frame is not None:
             on_frame(1)
     return n
 
 
+def _with_detections(frames, detections: dict, detector, every: int = 1):
+    """``(number, image, detections)`` for each frame, on every ``every``-th frame (``None`` on
+    the others: not detected): from ``detections`` (a frame it does not list has none), or from
+    a ``detector`` run one frame ahead on a worker thread."""
+    from concurrent.futures import Future, ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1, thread_name_prefix="artmotion-detect") as pool:
+        pending = None
+        for k, (n, img) in enumerate(frames):
+            job: Future | np.ndarray | None = None
+            if k % every == 0:
+                job = pool.submit(detector, img) if detector is not None else detections.get(n, _NONE)
+            if pending is not None:
+                yield _done(*pending)
+            pending = (n, img, job)
+        if pending is not None:
+            yield _done(*pending)
+
+
+def _done(n: int, img: np.ndarray, job):
+    return n, img, job.result() if hasattr(job, "result") else job
+
+
+_NONE = np.zeros((0, 5))
+
+
 def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progress: bool = False,
-          video=None, config: TrackerConfig | None = None, fps: float | None = None) -> TrackResult:
+          video=None, config: TrackerConfig | None = None, fps: float | None = None,
+          detector: str = "auto", detect_every: int = 1) -> TrackResult:
     """Track people in ``source`` (MOTChallenge folder, video file or image folder).
 
     ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
-    built-in HOG people detector runs on every frame. ``experts``: names of the tracking experts
+    built-in ``detector`` runs on every frame (:func:`~artmotion.tracking.detectors.make_detector`:
+    ``auto``, ``ssdlite`` or ``hog``); ``detect_every``: run that detector on every k-th frame
+    only, the tracking experts and the motion model carrying the boxes in between. ``experts``: names of the tracking experts
     (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
     interpolation or tentative beginnings). ``progress``: a progress bar on stderr.
     ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
     say it (a folder of images; else 25 is assumed) or says it wrong.
     """
-    from artmotion.tracking.detect import HOGPeopleDetector, load_detections
+    from artmotion.tracking.detect import load_detections
+    from artmotion.tracking.detectors import check_detector, make_detector
 
     experts = _check_experts(experts)
+    check_detector(detector)
+    check_range("--detect-every", detect_every, 1, 100, integer=True)
     seq = open_sequence(source)
     if fps is not None:
         check_range("frame rate (frames/s)", fps, MIN_FPS, MAX_FPS)
         seq.fps, seq.fps_known = float(fps), True
     det_path = Path(det) if det is not None else seq.det_path
-    detector = None
+    model = None
     if det_path is not None:
         dets, source_name = load_detections(det_path), str(det_path)
         if dets and max(dets) > seq.length and seq.images is not None:
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)
     else:
-        detector, dets, source_name = HOGPeopleDetector(), {}, "hog"
+        model = make_detector(detector)
+        dets, source_name = {}, model.name
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config, online=online)
     reduce = _work_reduce(seq.width, seq.height)
     # the tracker only looks at the reduced images; a detector needs the whole frame
-    decode = 1 if detector is not None else reduce
+    decode = 1 if model is not None else reduce
     bar = None
     if progress:
         from tqdm import tqdm
@@ -126,7 +161,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     t0 = time.perf_counter()
     try:
         with closing(seq.frames(reduce=decode)) as frames:
-            n = run_tracker(tracker, frames, dets, reduce=reduce, decode=decode, detector=detector,
+            n = run_tracker(tracker, frames, dets, reduce=reduce, decode=decode, detector=model,
+                            detect_every=detect_every if model is not None else 1,
                             on_frame=bar.update if bar is not None else None)
     finally:
         if bar is not None:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from artmotion.tracking.config import DETECT_EVERY
+
 
 def eval_command(
     gt: str = typer.Argument(..., metavar="GT.txt", help="Ground truth, MOTChallenge text (rows with conf 0 are ignored)."),
@@ -39,7 +41,13 @@ def track_command(
     source: str = typer.Argument(..., metavar="SOURCE",
                                  help="MOTChallenge folder (seqinfo.ini), video file, or folder of images."),
     det: str = typer.Option(None, "--det", metavar="DET.txt",
-                            help="Detections, MOTChallenge text (default: SOURCE/det/det.txt, else the built-in HOG detector)."),
+                            help="Detections, MOTChallenge text (default: SOURCE/det/det.txt, else the built-in detector)."),
+    detector: str = typer.Option("auto", "--detector", metavar="auto|ssdlite|hog",
+                                 help="Built-in person detector when there are no detections: ssdlite (a CNN), "
+                                      "hog (OpenCV's HOG), auto: ssdlite when installed, else hog."),
+    detect_every: int = typer.Option(DETECT_EVERY, "--detect-every", metavar="K",
+                                     help="Run the built-in detector on every K-th frame; the tracker carries "
+                                          "the boxes in between."),
     out: str = typer.Option(None, "--out", metavar="RESULTS.txt", help="Write the tracks (MOTChallenge text)."),
     events: str = typer.Option(None, "--events", metavar="EVENTS.jsonl",
                                help="Write enter/exit/merge/split events (JSON lines)."),
@@ -65,7 +73,7 @@ def track_command(
     if progress is None:
         progress = sys.stderr.isatty()
     res = track(source, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,
-                fps=fps)
+                fps=fps, detector=detector, detect_every=detect_every)
     if out:
         write_mot(out, res.tracks)
     if events:

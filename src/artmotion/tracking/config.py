@@ -9,8 +9,12 @@ component that is off by default is off because the ablation showed it does not 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Any
 
-__all__ = ["TrackerConfig"]
+__all__ = ["DETECT_EVERY", "TrackerConfig"]
+
+#: the built-in detector runs on every this many frames (docs/tracking.md, "Built-in detector")
+DETECT_EVERY = 2
 
 
 @dataclass
@@ -74,6 +78,7 @@ class TrackerConfig:
         no offline filtering of tracks). The leave-one-out search starts here; objects other than
         people, which the defaults were not chosen on, are tracked with these and the noise
         levels estimated from their own detections (``adapt_noise=True``)."""
+        base: dict[str, Any]
         base = dict(high=0.6, low=0.1, accel=1.0, size_accel=0.25, meas=0.05, size_meas=0.05, adapt_noise=False,
                     noise_horizon=1.0, camera=True, match_iou=0.2, app_weight=0.0, app_parts=1, reacquire_kl=0.0,
                     birth_iou=0.7, confirm_hits=2, tentative_misses=0, max_lost=1.0, exit_test=False, groups=True,

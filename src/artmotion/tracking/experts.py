@@ -15,8 +15,9 @@ experts over many entities cost little.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -78,10 +79,13 @@ class Frame:
     def __init__(self, number: int, image: np.ndarray, detections=None, scale: float = 1.0,
                  shared: dict | None = None, image_scale: float = 1.0):
         self.number = number
-        self.image = image
+        self.image: np.ndarray | None = image
         self.image_scale = float(image_scale)
         self.height, self.width = (int(round(v / self.image_scale)) for v in image.shape[:2])
         self.scale = float(scale)
+        #: whether the detector ran on this frame (``detections=None``: it did not, e.g. when it
+        #: runs on every k-th frame only; the tracker then predicts and counts no misses)
+        self.detected = detections is not None
         self.detections = (np.zeros((0, 5)) if detections is None
                            else np.asarray(detections, dtype=float).reshape(-1, 5))
         #: state shared across frames (background model, flow engine), owned by the tracker
@@ -101,6 +105,7 @@ class Frame:
     def small(self) -> np.ndarray:
         """Downscaled BGR image."""
         def make():
+            assert self.image is not None  # the tracker drops the image only after caching ``small``
             f = self.scale / self.image_scale
             if abs(f - 1.0) < 1e-9:
                 return self.image
@@ -141,10 +146,10 @@ class Entity:
 # Registry
 # --------------------------------------------------------------------------------------------
 
-EXPERTS: dict[str, type["Expert"]] = {}
+EXPERTS: dict[str, type[Expert]] = {}
 
 
-def register_expert(cls: type["Expert"]) -> type["Expert"]:
+def register_expert(cls: type[Expert]) -> type[Expert]:
     """Class decorator: make an expert available by its ``name`` to :func:`make_experts`."""
     if not getattr(cls, "name", None):
         raise ValueError("an expert needs a name")
@@ -152,7 +157,7 @@ def register_expert(cls: type["Expert"]) -> type["Expert"]:
     return cls
 
 
-def make_experts(names, **options) -> list["Expert"]:
+def make_experts(names, **options) -> list[Expert]:
     """Instantiate experts by name; ``options`` maps a name to keyword arguments for it."""
     out = []
     for n in names:
@@ -233,7 +238,7 @@ class DetectionExpert(Expert):
 # 2.4.2 Point features (KLT)
 # --------------------------------------------------------------------------------------------
 
-_LK = dict(winSize=(9, 9), maxLevel=2, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03))
+_LK: dict[str, Any] = dict(winSize=(9, 9), maxLevel=2, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03))
 
 
 def _inner(box, shrink: float) -> np.ndarray:
@@ -295,7 +300,7 @@ class KLTExpert(Expert):
             pts = cv2.goodFeaturesToTrack(g[y0:y1, x0:x1], self.max_corners, 0.01, 2, blockSize=3)
         if pts is None or len(pts) < self.min_points:
             return None
-        return pts.reshape(-1, 2).astype(np.float32) + np.float32([x0, y0])
+        return pts.reshape(-1, 2).astype(np.float32) + np.array([x0, y0], dtype=np.float32)
 
     def propose(self, frame, prev, entity):
         return self.propose_many(frame, prev, [entity])[0]
@@ -310,17 +315,21 @@ class KLTExpert(Expert):
         if not idx:
             return out
         allp = np.concatenate([pts[i] for i in idx]).astype(np.float32)
-        p1, st, err = cv2.calcOpticalFlowPyrLK(prev.grey, frame.grey, allp.reshape(-1, 1, 2), None, **_LK)
+        # the stubs want nextPts, which OpenCV accepts as None (no initial guess)
+        p1, st, err = cv2.calcOpticalFlowPyrLK(prev.grey, frame.grey, allp.reshape(-1, 1, 2), None,  # type: ignore[call-overload]
+                                               **_LK)
         if p1 is None:
             return out
-        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(frame.grey, prev.grey, p1, None, **_LK)
+        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(frame.grey, prev.grey, p1, None, **_LK)  # type: ignore[call-overload]
         fb = np.linalg.norm(p0r.reshape(-1, 2) - allp, axis=1)
         good = (st.ravel() == 1) & (st2.ravel() == 1) & (fb < self.fb_max)
         p1 = p1.reshape(-1, 2)
         err = err.ravel()
         start = 0
         for i in idx:
-            n = len(pts[i])
+            p = pts[i]
+            assert p is not None  # ``idx``: the entities with points
+            n = len(p)
             sl = slice(start, start + n)
             start += n
             g = good[sl]
@@ -499,6 +508,7 @@ class MotionExpert(Expert):
     def process_noise(self, entity: Entity) -> np.ndarray:
         """``Q`` of Eq. 2.10 (``B Σ_a Bᵀ`` per axis) with ``Σ_a`` from finite differences."""
         kf = entity.kf
+        assert kf is not None  # only entities with a Kalman filter are predicted (``propose`` checks)
         dt = kf.F[0, 1]
         n = max(4, int(round(self.window / dt)) + 2)
         h = entity.box[3]
@@ -513,6 +523,7 @@ class MotionExpert(Expert):
 
     def predict_entity(self, entity: Entity) -> Gaussian:
         kf = entity.kf
+        assert kf is not None  # only entities with a Kalman filter are predicted (``propose`` checks)
         kf.predict(Q=self.process_noise(entity))
         return Gaussian(kf.H @ kf.x, kf.H @ kf.P @ kf.H.T)
 
@@ -537,7 +548,8 @@ def dense_flow(frame: Frame, prev: Frame) -> np.ndarray:
     def make():
         dis = frame.shared.get("dis")
         if dis is None:
-            dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+            # the stubs lack OpenCV's module-level alias of DISOpticalFlow.create
+            dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)  # type: ignore[attr-defined]
             frame.shared["dis"] = dis
         return dis.calc(prev.grey, frame.grey, None)
     return frame.cached(f"flow{prev.number}", make)

@@ -37,7 +37,18 @@ from artmotion.tracking.entry_exit import track_ends
 from artmotion.tracking.experts import Entity, Frame
 from artmotion.tracking.groups import Group, resolve_split, update_groups
 from artmotion.tracking.pote import PoTE
-from artmotion.tracking.state import DETECTED, GROUP, LOST, TENTATIVE, KINDS, KalmanBank, NoiseEstimator, boxes_to_z, warp_matrix, z_to_boxes
+from artmotion.tracking.state import (
+    DETECTED,
+    GROUP,
+    KINDS,
+    LOST,
+    TENTATIVE,
+    KalmanBank,
+    NoiseEstimator,
+    boxes_to_z,
+    warp_matrix,
+    z_to_boxes,
+)
 
 __all__ = ["KINDS", "OnlineTracker", "Track"]
 
@@ -113,6 +124,7 @@ class OnlineTracker:
         self.prev: Frame | None = None
         self.first_frame: int | None = None
         self.last_frame = 0
+        self._detected_at: int | None = None   # the last frame the detector ran on
         self.online_out: list = []
 
     def _frames(self, seconds: float) -> int:
@@ -174,7 +186,7 @@ class OnlineTracker:
         keeps only its first box; subclasses may use the history first (the offline pass)."""
         release_history(t)
 
-    def _det_hist(self, frame: Frame, j: int) -> np.ndarray | None:
+    def _det_hist(self, frame: Frame, j: int | np.integer) -> np.ndarray | None:
         """RGB histogram of detection ``j`` of ``frame`` (computed once per frame)."""
         return frame.cached(f"det_hist{j}", lambda: rgb_histogram(frame.small, frame.detections[j, :4], frame.scale,
                                                                    parts=self.cfg.app_parts))
@@ -190,6 +202,10 @@ class OnlineTracker:
         self.last_frame = n
         if self.first_frame is None:
             self.first_frame = n
+        # misses count frames of time: on a detected frame, those since the last detected one
+        gap = n - self._detected_at if frame.detected and self._detected_at is not None else int(frame.detected)
+        if frame.detected:
+            self._detected_at = n
         dets = frame.detections
         if dets is not None and len(dets):
             dets = frame.detections = dets[dets[:, 4] >= cfg.low]
@@ -212,7 +228,7 @@ class OnlineTracker:
         # 2. image experts: the product of their Gaussians updates the predicted centre (Eq. 2.3)
         opinions = {}
         if self.pote is not None and self.prev is not None and tracks:
-            sel = [i for i in self._expert_tracks(tracks)]
+            sel = self._expert_tracks(tracks, every=not frame.detected)
             if sel:
                 ops = self.pote.estimate_many(frame, self.prev, [tracks[i].entity for i in sel],
                                               skip={"det", "motion"})
@@ -222,13 +238,15 @@ class OnlineTracker:
                         opinions[i] = op
 
         pred = self.bank.boxes(slots) if len(slots) else np.zeros((0, 4))
-        matched = self._associate(frame, tracks, pred, dets)
+        # a frame the detector skipped: the tracks coast on the experts and motion, no misses
+        matched = self._associate(frame, tracks, pred, dets) if frame.detected else {}
         if cfg.groups and cfg.split_app and self.groups:
             resolve_split(self.groups, tracks, pred, dets, matched, lambda j: self._det_hist(frame, j))
         # Sec. 2.7.1: each image expert's variance follows its actual error against the detector
         for i, op in opinions.items():
             j = matched.get(i)
             if j is not None and dets[j, 4] >= cfg.high:
+                assert self.pote is not None  # only the image experts give opinions
                 self.pote.observe(op, dets[j, :2] + 0.5 * dets[j, 2:4], dets[j, 2:4])
 
         # 3. update matched tracks; the others coast
@@ -242,7 +260,7 @@ class OnlineTracker:
         for i, t in enumerate(tracks):
             j = matched.get(i)
             if j is None:
-                t.misses += 1
+                t.misses += gap
                 t.entity.box = pred[i]
                 continue
             d = dets[j]
@@ -267,14 +285,14 @@ class OnlineTracker:
                 t.Pf.append(self.bank.P[t.slot].copy())
 
         # 4. groups of occluded tracks, then deaths (Sec. 2.5.2, 2.5.4)
-        if cfg.groups:
+        if cfg.groups and frame.detected:
             self.next_group = update_groups(self.groups, tracks, matched, n, cfg, self.next_group)
             for g in self.groups:
                 for m in g.members:
                     if m.misses > 0:
                         m.kinds[-1] = GROUP
         for i, t in enumerate(tracks):
-            if i not in matched and track_ends(t, frame, cfg, self.width, self.height, self._frames):
+            if i not in matched and frame.detected and track_ends(t, frame, cfg, self.width, self.height, self._frames):
                 self._kill(t)
 
         # 5. births from unmatched high-score detections
@@ -297,13 +315,15 @@ class OnlineTracker:
         frame.drop_image()
         self.prev = frame
 
-    def _expert_tracks(self, tracks: list) -> list[int]:
-        """Indices of the tracks the image experts predict: lost ones (or all, ``experts_when``),
-        but none that another track covers: the image inside a hidden member's box shows whoever
-        is in front (Sec. 2.5.2), so group members and tracks overlapping another track's box
-        (IoU >= 0.1) are left to their motion model."""
+    def _expert_tracks(self, tracks: list, every: bool = False) -> list[int]:
+        """Indices of the tracks the image experts predict: lost ones (or all, ``experts_when``;
+        ``every``: all, on a frame the detector skipped), but none that another track covers: the
+        image inside a hidden member's box shows whoever is in front (Sec. 2.5.2), so group
+        members and tracks overlapping another track's box (IoU >= 0.1) are left to their motion
+        model."""
         cfg = self.cfg
-        sel = [i for i, t in enumerate(tracks) if (cfg.experts_when == "all" or t.misses > 0) and t.group is None]
+        sel = [i for i, t in enumerate(tracks)
+               if (every or cfg.experts_when == "all" or t.misses > 0) and t.group is None]
         if not sel or len(tracks) < 2:
             return sel
         boxes = np.array([t.box for t in tracks])
@@ -314,6 +334,7 @@ class OnlineTracker:
     def _adapt_noise(self, tracks: list, n: int, boxes: np.ndarray) -> None:
         """Feed the detections of confirmed tracks to the noise estimator
         (:class:`~artmotion.tracking.state.NoiseEstimator`) and use its estimates."""
+        assert self.noise is not None  # called only when there is a noise estimator
         z = boxes_to_z(boxes)
         for t, zk in zip(tracks, z):
             if t.state == "confirmed":

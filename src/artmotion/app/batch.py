@@ -10,9 +10,9 @@ from __future__ import annotations
 import os
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from artmotion.app.pipeline import is_finished
 from artmotion.errors import ArtmotionError, InputError, Interrupted
@@ -132,7 +132,7 @@ def _quietly_close(*closables) -> None:
 class BatchInterrupted(Interrupted):
     """The batch was interrupted; ``report`` holds what finished (kept) and what did not run."""
 
-    def __init__(self, signum: int, report: "BatchReport", not_run: list[str]):
+    def __init__(self, signum: int, report: BatchReport, not_run: list[str]):
         super().__init__(signum)
         self.report = report
         self.not_run = not_run
@@ -242,12 +242,12 @@ def run_batch(
     items = find_items(root)
     out = Path(out) if out is not None else Path(root) / "artmotion-runs"
     report = BatchReport()
-    todo = []
-    for it, od in zip(items, item_dirs(items, out)):
-        if not force and is_finished(od):
-            report.outcomes.append(ItemOutcome(str(it), "skipped", str(od), message="already finished"))
+    todo: list[tuple[str, str]] = []
+    for item_path, item_out in zip(items, item_dirs(items, out)):
+        if not force and is_finished(item_out):
+            report.outcomes.append(ItemOutcome(str(item_path), "skipped", str(item_out), message="already finished"))
         else:
-            todo.append((str(it), str(od)))
+            todo.append((str(item_path), str(item_out)))
     total = len(items)
     for o in report.outcomes:
         if on_progress:

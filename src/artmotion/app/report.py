@@ -85,7 +85,8 @@ def _timeline_svg(manifest: dict, length: int) -> str:
             if tid in rows:
                 y = 10 + rows[tid] * row_h
                 label = html.escape(f'{ev["type"]} at frame {ev["frame"]}' + (f' ({ev["side"]})' if ev.get("side") else ""))
-                parts.append(f'<text x="{xs(ev["frame"]) - 5:.1f}" y="{y + 13}" font-size="12" class="ev ev-{html.escape(ev["type"])}">'
+                parts.append(f'<text x="{xs(ev["frame"]) - 5:.1f}" y="{y + 13}" font-size="12" '
+                             f'class="ev ev-{html.escape(ev["type"])}">'
                              f'{glyph.get(ev["type"], "●")}<title>{label}</title></text>')
     y = height - 8
     for f in np.linspace(1, length, 6).round().astype(int):

@@ -169,7 +169,7 @@ class PointModel:
     name = "base"
     dof = 0
 
-    def fit(self, X: np.ndarray) -> "PointModel":  # pragma: no cover - interface
+    def fit(self, X: np.ndarray) -> PointModel:  # pragma: no cover - interface
         raise NotImplementedError
 
     def motion(self, X: np.ndarray) -> np.ndarray:
@@ -207,12 +207,14 @@ class StaticModel(PointModel):
         return np.zeros((len(X), 0))
 
     def predict(self, q):
+        assert self.centre is not None  # fitted
         return np.repeat(self.centre[None, :], len(q), axis=0)
 
     def jacobian(self, q):
         return np.zeros((3, 0))
 
     def configuration(self, dim=3):
+        assert self.centre is not None  # fitted
         return {"centre": self.centre[:dim].tolist()}
 
 
@@ -239,6 +241,7 @@ class PrismaticModel(PointModel):
     @property
     def params(self) -> tuple:
         """``(origin, direction)`` as six floats (for scalar filter code)."""
+        assert self.origin is not None and self.direction is not None  # fitted
         return (*self.origin.tolist(), *self.direction.tolist())
 
     def motion(self, X):
@@ -248,15 +251,19 @@ class PrismaticModel(PointModel):
         return self.origin + np.asarray(q).reshape(-1, 1) * self.direction
 
     def jacobian(self, q):
+        assert self.direction is not None  # fitted
         return self.direction.reshape(3, 1)
 
     def predict1(self, q: float) -> np.ndarray:
+        assert self.origin is not None and self.direction is not None  # fitted
         return self.origin + q * self.direction
 
     def jacobian1(self, q: float) -> np.ndarray:
+        assert self.direction is not None  # fitted
         return self.direction
 
     def configuration(self, dim=3):
+        assert self.origin is not None and self.direction is not None  # fitted
         return {"origin": self.origin[:dim].tolist(), "direction": self.direction[:dim].tolist()}
 
 
@@ -310,6 +317,7 @@ class RevoluteModel(PointModel):
     @property
     def params(self) -> tuple:
         """``(centre, radius, u, v)`` as ten floats (for scalar filter code)."""
+        assert self.centre is not None and self.u is not None  # fitted
         return (*self.centre.tolist(), float(self.radius), *self.u.tolist(), *self.v.tolist())
 
     def motion(self, X):
@@ -323,15 +331,18 @@ class RevoluteModel(PointModel):
 
     def jacobian(self, q):
         q = float(np.asarray(q).reshape(-1)[0])
+        assert self.u is not None  # fitted
         return (self.radius * (-math.sin(q) * self.u + math.cos(q) * self.v)).reshape(3, 1)
 
     def predict1(self, q: float) -> np.ndarray:
+        assert self.u is not None  # fitted
         return self.centre + (self.radius * math.cos(q)) * self.u + (self.radius * math.sin(q)) * self.v
 
     def jacobian1(self, q: float) -> np.ndarray:
         return (-self.radius * math.sin(q)) * self.u + (self.radius * math.cos(q)) * self.v
 
     def configuration(self, dim=3):
+        assert self.centre is not None and self.axis is not None  # fitted
         out = {"centre": self.centre[:dim].tolist(), "radius": float(self.radius)}
         out["axis"] = self.axis.tolist()
         return out
@@ -376,6 +387,7 @@ class PlanarModel(PointModel):
         return np.column_stack([self.u, self.v])
 
     def configuration(self, dim=3):
+        assert self.origin is not None and self.normal is not None  # fitted
         return {"origin": self.origin[:dim].tolist(), "normal": self.normal.tolist()}
 
 

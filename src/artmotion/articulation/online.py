@@ -85,12 +85,16 @@ def _median_rows(A: np.ndarray) -> np.ndarray:
 class _ModelFilter:
     """EKF on the motion variables of one fitted point model (observation = 3-D point)."""
 
+    swept: float  #: motion range of the last configuration fit (set by ``OnlineArticulation``)
+    rss: float  #: squared residuals of the last configuration fit (set by ``OnlineArticulation``)
+
     def __init__(self, model, order: int):
-        self._x = None
-        self._P = None
-        self._s = None  # scalar state of the fast paths (static: x0, x1, x2, p; cv1: q, q', p00, p01, p11)
-        self._prm = None  # the model's parameters as floats, cached between configuration fits
-        self._prm_src = None
+        self._x: np.ndarray | None = None
+        self._P: np.ndarray | None = None
+        # scalar state of the fast paths (static: x0, x1, x2, p; cv1: q, q', p00, p01, p11)
+        self._s: tuple[float, ...] | None = None
+        self._prm: tuple | None = None  # the model's parameters as floats, cached between configuration fits
+        self._prm_src: np.ndarray | None = None
         self.model = model
         self.order = order if model.dof > 0 else 1
         self.dof = model.dof
@@ -217,6 +221,7 @@ class _ModelFilter:
         """Static point: isotropic prior and noise keep ``P = p I`` (F = I, Q = 0), a scalar filter."""
         s = self._s
         if s is None:
+            assert self._x is not None and self._P is not None  # set by ``start``
             x0, x1, x2 = self._x.tolist()
             p = float(self._P[0, 0])
         else:
@@ -233,6 +238,7 @@ class _ModelFilter:
         general path (Eq. 4.13-4.14 with n = 2, rank-one EKF update)."""
         s = self._s
         if s is None:
+            assert self._x is not None and self._P is not None  # set by ``start``
             x0, x1 = self._x.tolist()
             P = self._P
             p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
@@ -277,6 +283,7 @@ class _ModelFilter:
 
     def _filter_cv1(self, zs, ds, r2: float, accel: float):
         """:meth:`_step_cv1` over a window (the same arithmetic, no likelihoods): filter restarts."""
+        assert self._x is not None and self._P is not None  # set by ``start``
         x0, x1 = self._x.tolist()
         P = self._P
         p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
@@ -414,9 +421,9 @@ class OnlineEstimator:
         self.filters: list | None = None
         self.logp = np.zeros(len(self.names))
         self.history: list = []
-        self.first_decision = None
+        self.first_decision: tuple[str, int] | None = None
         self.decisions: list = []  # decided model (or None) per sample
-        self._above = None  # (model index, first sample) of the current run above tau
+        self._above: tuple[int, int] | None = None  # (model index, first sample) of the current run above tau
         self.confirm_static = confirm_static
         self._next_refit = 0
         self.sigma = noise if noise is not None else noise_floor
@@ -498,6 +505,7 @@ class OnlineEstimator:
         can be preferred once it has turned ``theta_min = sqrt(8 sigma / r_max)`` and bulges from
         its chord by at least ``sigma``; neither before the point has moved ``4 sigma``.
         """
+        assert self.filters is not None and self._rev is not None and self._pri is not None  # see ``_fit_all``
         rmax = self.max_radius
         rev = self.filters[self._rev]
         travel = self.filters[self._pri].swept

@@ -133,6 +133,7 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
         rms = float(np.sqrt(np.mean((tracks - (np.einsum("fij,nj->fni", R, cand) + t[:, None, :])) ** 2)))
         if best is None or rms < best[3] - 1e-12:
             best = (R, t, cand, rms)
+    assert best is not None  # set by the first candidate
     R, t, shape, _ = best
     return R, t, shape[:n_points]
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -106,7 +107,8 @@ class World:
         out = [self.static]
         for kind, p in self.moving:
             if kind == "prismatic":
-                out.append((np.asarray(p["origin"]) + p["amplitude"] * math.sin(p["omega"] * t) * np.asarray(p["direction"]))[None])
+                out.append((np.asarray(p["origin"])
+                            + p["amplitude"] * math.sin(p["omega"] * t) * np.asarray(p["direction"]))[None])
             else:
                 a = p["phase"] + p["omega"] * t
                 out.append((np.asarray(p["centre"]) + p["radius"] * np.array([math.cos(a), math.sin(a)]))[None])
@@ -185,6 +187,14 @@ class _Block:
     """A landmark's slice of the state and how it maps to a 2-D position."""
 
     __slots__ = ("kind", "start", "dim", "origin", "direction", "centre", "radius", "F", "Q")
+
+    # set when the landmark is given a model (prismatic: origin, direction; revolute: centre, radius)
+    origin: np.ndarray
+    direction: np.ndarray
+    centre: np.ndarray
+    radius: float
+    F: np.ndarray | None
+    Q: np.ndarray | None
 
     def __init__(self, kind, start, dim):
         self.kind, self.start, self.dim = kind, start, dim
@@ -372,12 +382,13 @@ class EKFSlam:
         probs = est.probabilities
         if not probs:
             return
-        name = max(probs, key=probs.get)
+        name = max(probs, key=probs.__getitem__)
         if probs[name] <= self.threshold:
             return
         if name == "static":
             self._add_static(i, z)
             return
+        assert est.filters is not None  # a moving model leads only once the filters were fit
         f = est.filters[est.names.index(name)]
         model = f.model
         model.fit(np.asarray(est.X))
@@ -469,7 +480,7 @@ def monte_carlo(runs: int = 20, steps: int = 600, landmarks: int = 42, prismatic
     """Average errors of Articulated EKF SLAM and EKF SLAM over ``runs`` simulated runs (Table 4.2)."""
     if runs < 1 or steps < 2:
         raise InputError("need at least one run of at least two steps")
-    acc = {"articulated": [], "ekf": [], "ekf_gated": []}
+    acc: dict[str, list[dict[str, float]]] = {"articulated": [], "ekf": [], "ekf_gated": []}
     last = None
     for r in range(runs):
         world = make_world(landmarks, prismatic, revolute, seed=seed + 1000 * r)
@@ -484,7 +495,7 @@ def monte_carlo(runs: int = 20, steps: int = 600, landmarks: int = 42, prismatic
             res[name] = out
         if keep_last:
             last = (world, sim, res)
-    summary = {name: {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} for name, errs in acc.items()}
+    summary: dict[str, Any] = {name: {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} for name, errs in acc.items()}
     summary["runs"], summary["steps"], summary["lag"] = runs, steps, lag
     if keep_last:
         summary["_last"] = last

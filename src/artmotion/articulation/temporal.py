@@ -42,7 +42,7 @@ def filter_order(q, t, order: int, process_var: float, obs_var: float, horizon: 
     ahead = np.full(n, np.nan)
     filtered[0] = q[0]
     ll = 0.0
-    cache = {}
+    cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     def model(dt):
         FQ = cache.get(dt)
@@ -80,6 +80,7 @@ def compare_orders(q, t, orders=(1, 2, 3), obs_var: float = 1e-4, truth=None, ho
             r = filter_order(q, t, n, pv, obs_var)
             if best is None or r["loglik"] > best[1]["loglik"]:
                 best = (pv, r)
+        assert best is not None  # the first process variance always sets it
         pv, _ = best
         r = filter_order(q, t, n, pv, obs_var, horizon=horizon)
         ok = ~np.isnan(r["predicted"])
@@ -122,7 +123,7 @@ def configuration_monte_carlo(runs: int = 500, n: int = 20, centre=(2.0, 2.0), r
     rng = np.random.default_rng(seed)
     c = np.asarray(centre, dtype=float)
     sd = math.sqrt(noise_var)
-    errs = {"joint": [[], []], "separate": [[], []]}
+    errs: dict[str, list[list[float | np.floating]]] = {"joint": [[], []], "separate": [[], []]}
     tk = np.arange(n, dtype=float)
     for _ in range(runs):
         th0 = rng.uniform(-math.pi, math.pi)
@@ -135,8 +136,8 @@ def configuration_monte_carlo(runs: int = 500, n: int = 20, centre=(2.0, 2.0), r
         errs["separate"][0].append(np.linalg.norm(cs - c))
         errs["separate"][1].append(abs(rs - radius))
     out = {}
-    for k, (ce, re) in errs.items():
-        ce, re = np.array(ce), np.array(re)
+    for k, (ce_list, re_list) in errs.items():
+        ce, re = np.array(ce_list), np.array(re_list)
         out[k] = {"centre_error": float(np.mean(ce)), "radius_error": float(np.mean(re)),
                   "centre_error_median": float(np.median(ce)), "radius_error_median": float(np.median(re))}
     return out

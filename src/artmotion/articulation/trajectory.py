@@ -54,7 +54,8 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
     path = os.fspath(path)
     text = read_text(path, "a trajectory file")
-    rows, lines = [], []
+    rows: list[list[float]] = []
+    line_list: list[int] = []
     header = None
     ncol = None
     for no, raw in enumerate(text.splitlines(), start=1):
@@ -78,14 +79,14 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         if not all(math.isfinite(v) for v in vals):
             raise InputError("NaN or infinite value", path=path, line=no)
         rows.append(vals)
-        lines.append(no)
+        line_list.append(no)
     if not rows:
         raise InputError("no samples", path=path)
     has_time = time
     if has_time is None:
         has_time = (header is not None and header[0] in _TIME_NAMES) or ncol in (4, 8)
     data = np.array(rows, dtype=float)
-    lines = np.array(lines)
+    lines = np.array(line_list)
     tcol = None
     if has_time:
         tcol, data = data[:, 0], data[:, 1:]

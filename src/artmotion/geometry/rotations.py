@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from artmotion.errors import InputError
+
 
 def _rotation():
     # scipy.spatial costs ~0.4 s to import: only when a rotation is asked for
     from scipy.spatial.transform import Rotation
 
     return Rotation
-
-from artmotion.errors import InputError
 
 
 def quat_to_matrix(q, *, tol: float = 1e-3) -> np.ndarray:

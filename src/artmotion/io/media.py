@@ -41,8 +41,8 @@ import numpy as np
 from artmotion.errors import InputError
 from artmotion.io.files import read_head
 
-__all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video", "image_problem",
-           "read_image", "write_image"]
+__all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
+           "image_problem", "read_image", "write_image"]
 
 IMAGE_EXTS = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm"})
 VIDEO_EXTS = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".webm", ".wmv", ".flv", ".ts",

@@ -13,8 +13,8 @@ from __future__ import annotations
 import csv
 import io
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from artmotion.errors import InputError, check_range
 from artmotion.io.files import read_text

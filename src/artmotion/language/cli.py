@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import List, Optional
+from typing import Optional
 
 import typer
 
@@ -32,10 +32,11 @@ def describe_cmd(
     results: Path = typer.Argument(..., help="Tracks: MOTChallenge results file (frame,id,x,y,w,h,...)."),
     events: Optional[Path] = typer.Option(None, "--events", help="Events JSON lines written by the tracker."),
     pose: Optional[Path] = typer.Option(None, "--pose", help="Pose predictions PRED.csv (artmotion pose predict)."),
-    cls: List[str] = typer.Option(["person"], "--class", help="Object class: NAME for all tracks, or ID=NAME (repeatable)."),
+    cls: list[str] = typer.Option(["person"], "--class", help="Object class: NAME for all tracks, or ID=NAME (repeatable)."),
     size: Optional[str] = typer.Option(None, "--size", help="Image size WIDTHxHEIGHT (default: extent of the boxes)."),
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate: say times in seconds too."),
-    pose_column: Optional[str] = typer.Option(None, "--pose-column", help="Opening-angle column (default: first containing 'open')."),
+    pose_column: Optional[str] = typer.Option(None, "--pose-column",
+                                              help="Opening-angle column (default: first containing 'open')."),
     pose_subject: str = typer.Option("tool", "--pose-subject", help="Who opens and closes."),
     pose_track: Optional[int] = typer.Option(None, "--pose-track", help="Track id of the posed object."),
     open_above: Optional[float] = typer.Option(None, "--open-above", help="Angle at which it opens (hysteresis)."),
@@ -44,12 +45,10 @@ def describe_cmd(
 ):
     """Describe tracks in sentences: who enters, exits, moves where, merges, splits, walks together."""
     from artmotion.io import read_events, read_mot
-    from artmotion.language.describe import describe, parse_classes, read_pose
-
+    from artmotion.io.media import MAX_FPS, MIN_FPS
     from artmotion.io.mot import MAX_ID
     from artmotion.io.table import MAX_ANGLE
-
-    from artmotion.io.media import MAX_FPS, MIN_FPS
+    from artmotion.language.describe import describe, parse_classes, read_pose
 
     if fps is not None:
         check_range("--fps", fps, MIN_FPS, MAX_FPS)

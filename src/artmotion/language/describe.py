@@ -185,7 +185,7 @@ def motion_segments(
                     merged.append(r)
             runs = merged
             changed = True
-    out = []
+    out: list[tuple[int, int, str | None]] = []
     for i0, i1, _ in runs:
         dx, dy = t.cx[i1] - t.cx[i0], t.cy[i1] - t.cy[i0]
         adj = None if math.hypot(dx, dy) < p.min_move * t.height else direction_word(dx, dy, p.diagonal)
@@ -202,7 +202,7 @@ def border_side(box: np.ndarray, size: tuple[float, float], p: DescribeParams) -
     x, y, w, h = box
     margin = max(8.0, p.border * min(W, H))
     d = {"left": x, "right": W - (x + w), "top": y, "bottom": H - (y + h)}
-    side = min(d, key=d.get)
+    side = min(d, key=d.__getitem__)
     return side if d[side] <= margin else "inside"
 
 
@@ -296,7 +296,8 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     if column is None:
         cands = [h for h in angles if "open" in h.lower()]
         if not cands:
-            raise InputError(f"no opening-angle column (name containing 'open') among {angles}; use --pose-column", path=path, line=1)
+            raise InputError(f"no opening-angle column (name containing 'open') among {angles}; use --pose-column",
+                             path=path, line=1)
         column = cands[0]
     elif column not in header:
         raise InputError(f"no column {column!r} (columns: {', '.join(header)})", path=path, line=1)
@@ -404,10 +405,10 @@ def describe(
                     add(Triplet(subj(tid), verb, side, None, span, [tid]))
             elif kind in ("merge", "split") and ids:
                 names = [subj(t, i == 0) for i, t in enumerate(ids)]
-                t = Triplet(join_subjects(names), kind, None, None, span, ids)
+                trip = Triplet(join_subjects(names), kind, None, None, span, ids)
                 if "group" in ev:
-                    t.object = f"group {ev['group']}"
-                add(t)
+                    trip.object = f"group {ev['group']}"
+                add(trip)
             # other event types are not in the grammar: nothing is said about them
     else:
         for tid, t in table.items():

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import List, Optional, Sequence
+from typing import Optional
 
 import typer
 
@@ -63,8 +64,10 @@ def train_cmd(
     t = time.perf_counter()
     reg.fit(imgs, Y, names)
     reg.save(model)
-    hyp = ", ".join(f"{n}: l={h.length:.3g} sn={h.sn2 ** 0.5 * s:.3g}°" for n, h, s in zip(names, reg.gp_.hypers, reg.gp_.y_std))
-    typer.echo(f"trained {reg.gp_.kind} GP on {len(Y)} crops, {reg.gp_.n_outputs} angles, feature {feature} "
+    gp = reg.gp_
+    assert gp is not None  # fitted
+    hyp = ", ".join(f"{n}: l={h.length:.3g} sn={h.sn2 ** 0.5 * s:.3g}°" for n, h, s in zip(names, gp.hypers, gp.y_std))
+    typer.echo(f"trained {gp.kind} GP on {len(Y)} crops, {gp.n_outputs} angles, feature {feature} "
                f"({time.perf_counter() - t:.1f} s) -> {model}")
     typer.echo(f"  {hyp}")
 
@@ -88,6 +91,7 @@ def predict_cmd(
     if smooth:
         mean, std = reg.make_filter().filter(mean, std)
     dt = time.perf_counter() - t
+    assert reg.names_ is not None  # set by load
     write_predictions(out, [p.name for p in paths], reg.names_, mean, std)
     typer.echo(f"predicted {len(paths)} crops ({len(paths) / max(dt, 1e-9):.0f} frames/s"
                f"{', Kalman-smoothed' if smooth else ''}) -> {out}")
@@ -97,7 +101,7 @@ def predict_cmd(
 def eval_cmd(
     images: Path = typer.Argument(..., help="Folder of crops (one sequence in file-name order)."),
     labels: Path = typer.Argument(..., help="Labels CSV."),
-    feature: List[str] = typer.Option(["hog", "lbp"], "--feature", help="Features to compare (repeatable)."),
+    feature: list[str] = typer.Option(["hog", "lbp"], "--feature", help="Features to compare (repeatable)."),
     folds: int = typer.Option(5, "--folds", help="Cross-validation folds."),
     split: str = typer.Option("random", "--split",
                               help="random: frames dealt to folds at random (the usual k-fold, the thesis' protocol); "
@@ -107,7 +111,8 @@ def eval_cmd(
     dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen dark sequence."),
     dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen dark sequence."),
     orientation: Optional[str] = typer.Option(None, "--orientation",
-                                              help="Comma-separated Euler-angle columns of the stem (default yaw,pitch,roll when present)."),
+                                              help="Comma-separated Euler-angle columns of the stem "
+                                                   "(default yaw,pitch,roll when present)."),
     euler: str = typer.Option("ZYX", "--euler", help="Euler convention of those columns (SciPy; upper case = intrinsic)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for tables (eval.md, eval.json), predictions and plots."),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
@@ -129,6 +134,7 @@ def eval_cmd(
         if (u_images is None) != (u_labels is None):
             raise InputError(f"{opt}-images and {opt}-labels go together")
         if u_images is not None:
+            assert u_labels is not None  # checked just above: both or neither
             unames, upaths, uimgs, uY = load_labelled(u_images, u_labels, progress=True)
             if unames != names:
                 raise InputError(f"angle columns {unames} differ from the training labels {names}", path=u_labels)

@@ -10,8 +10,8 @@ the sequence, so that every test fold is an unseen stretch of motion that can be
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
@@ -120,7 +120,7 @@ def summary(Y, mean, std, fmean, cols: Columns, names) -> dict[str, float]:
     for k, v in raw.items():
         res[f"{k}"] = float(v.mean())
         res[f"{k} filtered"] = float(filt[k].mean())
-    for k, n in enumerate(names):
-        res[f"{n} in 3sd"] = float(inside[:, k].mean())
+    for j, n in enumerate(names):
+        res[f"{n} in 3sd"] = float(inside[:, j].mean())
     res["all in 3sd"] = float(inside.all(1).mean())
     return res

@@ -92,6 +92,7 @@ def optimise_hyper(D2: np.ndarray, y: np.ndarray, restarts: int = 3, seed: int =
                        options={"maxiter": 100})
         if best is None or res.fun < best.fun:
             best = res
+    assert best is not None  # ``starts`` is never empty
     ll, lsf, lsn = best.x
     return Hyper(math.exp(ll), math.exp(2 * lsf), math.exp(2 * lsn))
 
@@ -178,6 +179,7 @@ class ExactGP(_BaseGP):
     def _local_variance(self, D2: np.ndarray) -> np.ndarray:
         """Predictive variance given only the ``neighbours`` nearest training inputs of each row."""
         r = self.neighbours
+        assert r is not None  # only called with local variance
         nn = np.argpartition(D2, r - 1, axis=1)[:, :r] if r < D2.shape[1] else np.broadcast_to(
             np.arange(D2.shape[1]), D2.shape)
         Xn = self.X[nn]  # (B, r, d)
@@ -219,7 +221,8 @@ class SparseGP(_BaseGP):
         m = len(self.Z)
         Dmm = sqdist(self.Z, self.Z, self.Z2, self.Z2)
         Dmn = sqdist(self.Z, X, self.Z2)
-        self.c, self.M = [], []
+        cs: list[np.ndarray] = []
+        self.M: list[np.ndarray] = []
         for k, h in enumerate(hypers):
             Kmm = se_kernel(Dmm, h.length, h.sf2)
             Kmm[np.diag_indices(m)] += 1e-6 * h.sf2
@@ -230,10 +233,10 @@ class SparseGP(_BaseGP):
             La = np.linalg.cholesky(A)
             beta = cho_solve((La, True), V @ Ys[:, k], check_finite=False)
             Pinv = solve_triangular(Lm, np.eye(m), lower=True, check_finite=False)  # L_m^-1
-            self.c.append(Pinv.T @ beta)
+            cs.append(Pinv.T @ beta)
             G = solve_triangular(La, Pinv, lower=True, check_finite=False)  # A^-1/2 L_m^-1
             self.M.append((h.sn2 * (G.T @ G) - Pinv.T @ Pinv).astype(np.float32))
-        self.c = np.stack(self.c, axis=1)
+        self.c = np.stack(cs, axis=1)
 
     def predict(self, X: np.ndarray, return_std: bool = False):
         X = np.atleast_2d(np.asarray(X))

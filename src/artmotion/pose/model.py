@@ -9,8 +9,9 @@ return_std=True)`` gives the mean and the predictive standard deviation of every
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -128,7 +129,7 @@ class PoseRegressor:
         self.progress = progress
         self.inducing = inducing
         self.names_: list[str] | None = None
-        self.gp_ = None
+        self.gp_: ExactGP | SparseGP | None = None
         self.accel_var_: np.ndarray | None = None
         self.pca_mean_: np.ndarray | None = None
         self.pca_components_: np.ndarray | None = None
@@ -140,6 +141,7 @@ class PoseRegressor:
     def _project(self, X: np.ndarray) -> np.ndarray:
         if self.pca_components_ is None:
             return X
+        assert self.pca_mean_ is not None  # set together with ``pca_components_``
         return (np.asarray(X, dtype=np.float32) - self.pca_mean_) @ self.pca_components_.T
 
     # -- training / prediction
@@ -176,11 +178,13 @@ class PoseRegressor:
     def predict(self, images, return_std: bool = False, batch: int = 256):
         """Mean (and std) of every angle for crops or a feature matrix; chunks of ``batch`` frames
         run on a small thread pool (NumPy and OpenCV release the GIL)."""
-        if self.gp_ is None:
+        gp = self.gp_
+        if gp is None:
             raise RuntimeError("PoseRegressor is not fitted")
+        assert self.names_ is not None  # set with ``gp_``
 
         def work(s):
-            return self.gp_.predict(self._project(self._as_features(images[s : s + batch])), return_std=True)
+            return gp.predict(self._project(self._as_features(images[s : s + batch])), return_std=True)
 
         starts = list(range(0, len(images), batch))
         if len(starts) > 1:
@@ -204,6 +208,9 @@ class PoseRegressor:
     # -- persistence
     def save(self, path: str | os.PathLike) -> None:
         gp = self.gp_
+        assert gp is not None and self.accel_var_ is not None, "PoseRegressor is not fitted"
+        neighbours = getattr(gp, "neighbours", None)
+        data: dict[str, Any]  # arrays only; ``Any`` because ``**data`` also meets savez' ``allow_pickle: bool``
         data = dict(
             magic=np.array(MAGIC), version=np.array(VERSION), feature=np.array(self.feature),
             cell=np.array(self.cell), size=np.array(self.size), blur=np.array(self.blur), names=np.array(self.names_),
@@ -212,7 +219,7 @@ class PoseRegressor:
             var_scale=gp.var_scale,
             inducing=gp.inducing if isinstance(gp, SparseGP) else np.zeros(0, np.int64),
             alpha=gp.alpha if isinstance(gp, ExactGP) else np.zeros(0),
-            neighbours=np.array(-1 if getattr(gp, "neighbours", None) is None else gp.neighbours),
+            neighbours=np.array(-1 if neighbours is None else neighbours),
             pca_mean=np.zeros(0, np.float32) if self.pca_mean_ is None else self.pca_mean_,
             pca_components=np.zeros((0, 0), np.float32) if self.pca_components_ is None else self.pca_components_,
         )
@@ -221,7 +228,7 @@ class PoseRegressor:
                 np.savez(fh, **data)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "PoseRegressor":
+    def load(cls, path: str | os.PathLike) -> PoseRegressor:
         """Read a model written by :meth:`save` and check it whole before it is used: every array
         of the right type, shape and finite values, the parameters in range, the feature of its
         crop size of the dimension the GP was trained on, and a test prediction finite. A

@@ -19,7 +19,9 @@ so a seed always gives the same images.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -102,13 +104,13 @@ def pose_script(n: int, rng: np.random.Generator) -> np.ndarray:
         keys_t.append(t)
         keys_v.append(nxt)
         cur = nxt
-    keys_t = np.array(keys_t)
-    keys_v = np.array(keys_v)
+    kt = np.array(keys_t)
+    kv = np.array(keys_v)
     frames = np.arange(n, dtype=float)
-    seg = np.clip(np.searchsorted(keys_t, frames, side="right") - 1, 0, len(keys_t) - 2)
-    t0, t1 = keys_t[seg], keys_t[seg + 1]
+    seg = np.clip(np.searchsorted(kt, frames, side="right") - 1, 0, len(kt) - 2)
+    t0, t1 = kt[seg], kt[seg + 1]
     s = _minjerk((frames - t0) / (t1 - t0))[:, None]
-    traj = keys_v[seg] * (1 - s) + keys_v[seg + 1] * s
+    traj = kv[seg] * (1 - s) + kv[seg + 1] * s
     # a little smooth hand tremor
     tremor = cv2.GaussianBlur(rng.normal(0, 1.0, (n, 5)).astype(np.float64), (1, 0), sigmaX=0, sigmaY=3)
     traj += tremor * np.array([0.6, 0.6, 0.8, 0.8, 0.5]) * 2.0
@@ -224,12 +226,14 @@ def draw_tool(img, pose: ToolPose, stem_color=(40, 40, 45), metal=(175, 175, 180
     clevis0 = tip - x * CLEVIS_LEN
     stem0 = pose.trocar()
     jaws = [_jaw_faces(tip, R, s, pose.opening) for s in (1.0, -1.0)]
-    items = [
-        (float(((stem0 + clevis0) / 2)[2]), lambda: _draw_cylinder(img, stem0, clevis0, STEM_R, stem_color, spec_shift, glint=glint * 0.5)),
-        (float(((clevis0 + tip) / 2)[2]) - 1e-3, lambda: _draw_cylinder(img, clevis0, tip, STEM_R * 0.95, metal, spec_shift, glint=glint)),
+    items: list[tuple[float, Callable[[], object]]] = [
+        (float(((stem0 + clevis0) / 2)[2]),
+         lambda: _draw_cylinder(img, stem0, clevis0, STEM_R, stem_color, spec_shift, glint=glint * 0.5)),
+        (float(((clevis0 + tip) / 2)[2]) - 1e-3,
+         lambda: _draw_cylinder(img, clevis0, tip, STEM_R * 0.95, metal, spec_shift, glint=glint)),
     ]
     for pts, faces in jaws:
-        items.append((float(pts.mean(0)[2]), (lambda p=pts, f=faces: _draw_box(img, p, f, metal, glint))))
+        items.append((float(pts.mean(0)[2]), partial(_draw_box, img, pts, faces, metal, glint)))
     for _, fn in sorted(items, key=lambda it: -it[0]):
         fn()
     key = [project(p) for p, _ in jaws]
@@ -249,7 +253,7 @@ def tissue(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     base = np.array([0.42, 0.45, 0.78], np.float32)  # BGR pink
     dark = np.array([0.20, 0.18, 0.52], np.float32)
     img = dark + (base - dark) * acc[..., None]
-    vessels = np.zeros((h, w), np.float32)
+    vessels: np.ndarray = np.zeros((h, w), np.float32)
     for _ in range(int(rng.integers(5, 10))):
         p = rng.uniform([0, 0], [w, h])
         ang = rng.uniform(0, 2 * np.pi)
@@ -258,10 +262,11 @@ def tissue(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
             ang += rng.normal(0, 0.25)
             p = p + 12 * np.array([math.cos(ang), math.sin(ang)])
             pts.append(p.copy())
-        cv2.polylines(vessels, [np.array(pts, np.int32)], False, float(rng.uniform(0.4, 1.0)), int(rng.integers(1, 4)), cv2.LINE_AA)
+        cv2.polylines(vessels, [np.array(pts, np.int32)], False, float(rng.uniform(0.4, 1.0)), int(rng.integers(1, 4)),
+                      cv2.LINE_AA)
     vessels = cv2.GaussianBlur(vessels, (0, 0), 1.5)
     img = img * (1 - 0.45 * vessels[..., None]) + np.array([0.05, 0.05, 0.25], np.float32) * 0.3 * vessels[..., None]
-    glints = np.zeros((h, w), np.float32)
+    glints: np.ndarray = np.zeros((h, w), np.float32)
     for _ in range(int(rng.integers(15, 30))):
         c = tuple(int(v) for v in rng.uniform([0, 0], [w, h]))
         cv2.ellipse(glints, c, (int(rng.integers(1, 5)), int(rng.integers(1, 3))), float(rng.uniform(0, 180)), 0, 360, 1.0, -1)
@@ -343,6 +348,7 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False):
                 _draw_cylinder(img, tro2, tip2, STEM_R, (70, 68, 66), 0.1, glint=0.4)
                 _draw_cylinder(img, tip2 - d2 * 6, tip2 + d2 * 8, STEM_R, (160, 160, 165), 0.1, glint=0.7)
             acc = img if acc is None else acc + img
+        assert acc is not None  # sub >= 1
         img = acc / sub
         img = img * (vign[..., None] * gain[i] * tint)
         noise = 5.0 if dark else 2.5

@@ -38,7 +38,7 @@ def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.
     return hist / hist.sum(axis=1, keepdims=True)
 
 
-def kl_divergence(p: np.ndarray, q: np.ndarray) -> float:
+def kl_divergence(p: np.ndarray | None, q: np.ndarray | None) -> float:
     """``KL(p || q)`` summed over the channels (``inf`` if either is ``None``)."""
     if p is None or q is None:
         return float("inf")

@@ -14,6 +14,8 @@ weak detection is almost certainly the same person (occluded, blurred) and not a
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from artmotion.geometry import iou_matrix
@@ -53,6 +55,7 @@ def assign(cost: np.ndarray) -> list[tuple[int, int]]:
     out = []
     for r, c in _groups(allowed):
         sub = cost[np.ix_(r, c)]
+        pairs: Iterable[tuple[int, int]]
         if max(sub.shape) > 16:
             from scipy.optimize import linear_sum_assignment
 

@@ -18,13 +18,15 @@ seconds.
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 
 __all__ = ["CameraMotion", "estimate_motion"]
 
 
-_LK = dict(winSize=(11, 11), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03))
+_LK: dict[str, Any] = dict(winSize=(11, 11), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03))
 
 
 def _box_mask(shape, exclude) -> np.ndarray:
@@ -74,7 +76,8 @@ def estimate_motion(prev: np.ndarray, cur: np.ndarray, exclude=None, max_points:
                                      mask=_box_mask(prev.shape, exclude), blockSize=3)
     if p0 is None or len(p0) < min_inliers:
         return none
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, **_LK)
+    # the stubs want nextPts, which OpenCV accepts as None (no initial guess)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, **_LK)  # type: ignore[call-overload]
     if p1 is None:
         return none
     ok = st.ravel() == 1
@@ -118,7 +121,7 @@ class CameraMotion:
         self.moving = False
         self.moved_frames = 0
         self._ref: np.ndarray | None = None      # grey image of the last check (still camera)
-        self._ref_boxes = None                   # the tracked boxes when it was taken
+        self._ref_boxes: np.ndarray | None = None  # the tracked boxes when it was taken
         self._ref_n = 0
         self._prev: np.ndarray | None = None     # previous grey image (moving camera)
         self._points: np.ndarray | None = None   # background corners of the previous image, followed on
@@ -138,7 +141,7 @@ class CameraMotion:
         """
         self._n += 1
         ex = None if exclude is None else np.asarray(exclude, dtype=float).reshape(-1, 4) * scale
-        A_small = None
+        A_small: np.ndarray | None = None
         if self.moving:
             if self._prev is not None:
                 A_small, self._points = estimate_motion(self._prev, grey, ex, points=self._points)

@@ -84,8 +84,8 @@ def track_pieces(track, dt: float, smooth: bool, max_interp: int, tail: int) -> 
     else:
         boxes = _boxes(np.asarray(track.xf))
     out = {}
-    for k in detected:
-        out[frames[k]] = [boxes[k], int(kinds[k]), track.scores[k]]
+    for i in detected:
+        out[frames[i]] = [boxes[i], int(kinds[i]), track.scores[i]]
     for a, b in zip(detected[:-1], detected[1:]):
         if b - a <= 1 or b - a - 1 > max_interp:
             continue

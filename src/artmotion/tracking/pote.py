@@ -6,7 +6,7 @@ The product of Gaussian densities is (up to normalisation, Eq. 2.1-2.2) the Gaus
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -118,7 +118,7 @@ class PoTE:
                       skip: Iterable[str] = ()) -> list:
         """:meth:`estimate` for several entities, letting experts batch their work."""
         skip = set(skip)
-        per = [{} for _ in entities]
+        per: list[dict[str, Gaussian | None]] = [{} for _ in entities]
         for e in self.experts:
             if e.name in skip:
                 continue

@@ -15,8 +15,8 @@ import os
 import queue
 import re
 import threading
+from collections.abc import Generator, Iterator
 from pathlib import Path
-from typing import Iterator
 
 import cv2
 import numpy as np
@@ -73,7 +73,7 @@ class Sequence:
         return (f"Sequence({self.name!r}, {self.length} frames, {self.width}x{self.height}, "
                 f"{self.fps:g} fps)")
 
-    def frames(self, prefetch: int = 8, reduce: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+    def frames(self, prefetch: int = 8, reduce: int = 1) -> Generator[tuple[int, np.ndarray], None, None]:
         """Yield ``(frame_number, BGR uint8 image)`` with 1-based, consecutive frame numbers.
 
         A background thread decodes up to ``prefetch`` frames ahead (OpenCV releases the GIL
@@ -89,7 +89,7 @@ class Sequence:
             return
         yield from _prefetched(self._read(reduce), prefetch)
 
-    def _read(self, reduce: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+    def _read(self, reduce: int = 1) -> Generator[tuple[int, np.ndarray], None, None]:
         want = (-(-self.height // reduce), -(-self.width // reduce))
         if self.images is not None:
             for i, p in enumerate(self.images, start=1):
@@ -120,6 +120,7 @@ class Sequence:
                 yield n, img
                 if n == self.length and self.length_exact:
                     if self.length_from is not None and cap.read()[0]:
+                        assert self.video is not None  # the capture was opened from it
                         raise InputError(f"seqinfo.ini says {self.length} frames but {self.video.name} has more",
                                          path=self.length_from)
                     break
@@ -209,7 +210,7 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
     numbered = [(_frame_number(p), p) for p in files]
     if all(n is not None for n, _ in numbered):
         numbered.sort(key=lambda t: (t[0], t[1].name))
-        nums = [n for n, _ in numbered]
+        nums = [n for n, _ in numbered if n is not None]  # all of them (the type checker cannot see it)
         if len(set(nums)) != len(nums):
             dup = next(n for n in nums if nums.count(n) > 1)
             raise InputError(f"two images have frame number {dup}", path=folder)

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NoiseEstimator", "DETECTED", "GROUP", "INTERPOLATED", "KINDS", "LOST", "TENTATIVE", "KalmanBank", "boxes_to_z", "warp_matrix", "z_to_boxes"]
+__all__ = ["NoiseEstimator", "DETECTED", "GROUP", "INTERPOLATED", "KINDS", "LOST", "TENTATIVE", "KalmanBank", "boxes_to_z",
+           "warp_matrix", "z_to_boxes"]
 
 #: what supports a track's state on a frame: an assigned detection, the image experts and motion
 #: only (lost), motion inside a group node, a detection before the track was confirmed, the

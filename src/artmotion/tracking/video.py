@@ -19,7 +19,7 @@ __all__ = ["colour_of", "draw_boxes", "write_annotated"]
 def colour_of(track_id: int) -> tuple[int, int, int]:
     """A stable, distinct BGR colour per id (golden-ratio hues)."""
     hue = int((track_id * 0.618033988749895 % 1.0) * 179)
-    hsv = np.uint8([[[hue, 220, 255]]])
+    hsv = np.array([[[hue, 220, 255]]], dtype=np.uint8)
     b, g, r = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0]
     return int(b), int(g), int(r)
 
@@ -49,7 +49,9 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
     banner: list[tuple[int, str]] = []
     w, h = size
     with atomic_path(path, suffix=".mp4") as tmp:
-        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps or 25.0), (w, h))
+        # the stubs lack OpenCV's module-level alias of VideoWriter.fourcc
+        fourcc = cv2.VideoWriter_fourcc(*"mp4v")  # type: ignore[attr-defined]
+        writer = cv2.VideoWriter(str(tmp), fourcc, float(fps or 25.0), (w, h))
         if not writer.isOpened():
             raise InputError("cannot open a video writer (mp4v)", path=path)
         written = 0

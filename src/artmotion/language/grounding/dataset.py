@@ -212,7 +212,7 @@ def read_index(dataset: str | os.PathLike) -> list[dict]:
     header, table = read_csv(index, need=need, what="grounding index CSV")
     rows = []
     for lineno, values in table:
-        row = dict(zip(header, values))
+        row: dict[str, str | int] = dict(zip(header, values))
         if any(not row[c] for c in need):
             raise InputError("empty field", path=index, line=lineno)
         row["_line"] = lineno

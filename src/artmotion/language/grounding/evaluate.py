@@ -21,14 +21,15 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, save_figure
-from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.io.media import read_image
+from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse, estimate_linking
 
@@ -86,12 +87,12 @@ def retrieval(F: dict, *, folds: int = 3, k: int = 5, seed: int = 0, example_pai
     n = len(F["colors"])
     if n < 2 * folds:
         raise InputError(f"too few examples ({n}) for {folds}-fold cross-validation")
-    hits = {m: {"color": [], "shape": []} for m in ("compositional", "paired")}
-    speech = {m: {"color": [], "shape": []} for m in ("compositional", "paired")}
+    hits: dict[str, dict[str, list]] = {m: {"color": [], "shape": []} for m in ("compositional", "paired")}
+    speech: dict[str, dict[str, list]] = {m: {"color": [], "shape": []} for m in ("compositional", "paired")}
     example: dict = {}  # Fig 5.8: one utterance, its generated features and retrieved neighbours
     pair = np.char.add(np.char.add(F["colors"], " "), F["shapes"])
-    want = np.flatnonzero(pair == example_pair)
-    want = int(want[0]) if len(want) else 0
+    found = np.flatnonzero(pair == example_pair)
+    want = int(found[0]) if len(found) else 0
     for tr, te in KFold(folds, shuffle=True, random_state=seed).split(np.arange(n)):
         comp, paired = _fit_both(F, tr, seed)
         for model, (gc, gs) in _generate(comp, paired, F, te).items():
@@ -130,7 +131,8 @@ def _nearest_label(gen: np.ndarray, ref: np.ndarray, labels: np.ndarray) -> np.n
 def unseen(F: dict, *, holdouts=HOLDOUTS, seed: int = 0) -> dict:
     """Recognition of colour and shape generated from the speech of held-out colour–shape pairs."""
     present = set(zip(F["colors"], F["shapes"]))
-    res = {m: {"true": [], "color": [], "shape": [], "renders": []} for m in ("compositional", "paired")}
+    res: dict[str, dict[str, list]] = {m: {"true": [], "color": [], "shape": [], "renders": []}
+                                       for m in ("compositional", "paired")}
     used = []
     for rnd, pairs in enumerate(holdouts):
         pairs = [p for p in pairs if tuple(p) in present]
@@ -154,7 +156,7 @@ def unseen(F: dict, *, holdouts=HOLDOUTS, seed: int = 0) -> dict:
                 for p in pairs:
                     i = next(j for j, t in enumerate(te) if (F["colors"][t], F["shapes"][t]) == tuple(p))
                     r["renders"].append((" ".join(p), gc[i], gs[i]))
-    out = {}
+    out: dict[str, Any] = {}
     for model, r in res.items():
         if not r["true"]:
             raise InputError("no held-out colour–shape pair is in the dataset")
@@ -290,7 +292,7 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     ret = retrieval(F, seed=seed)
     un = unseen(F, holdouts=holdouts, seed=seed)
     t_eval = time.perf_counter() - t1
-    report = {
+    report: dict[str, Any] = {
         m: {
             "retrieval": ret[m]["retrieval"],
             "unseen": {"color": un[m]["color"], "shape": un[m]["shape"]},

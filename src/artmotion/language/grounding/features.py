@@ -10,8 +10,9 @@ Rotation/start normalisation: writing harmonic ``n`` as two counter-rotating pha
 ``c(k)`` by ``exp(i(phi + k tau))``. We set the phase of ``c(+1)`` and of the largest other
 phasor ``c(m)`` to zero; the ``|m-1|`` solutions differ by the shape's own symmetry, or are told
 apart by the remaining phasors (the one maximising ``sum |c| (Re c + Im c)`` over them; a generic
-direction, so that mirror-symmetric shapes, whose phasors are real or imaginary, are decided too). Unlike rotating to the first harmonic's major axis alone, this
-stays defined when the first harmonic is a circle (squares, triangles, hexagons).
+direction, so that mirror-symmetric shapes, whose phasors are real or imaginary, are decided too).
+Unlike rotating to the first harmonic's major axis alone, this stays defined when the first harmonic is a
+circle (squares, triangles, hexagons).
 
 Audio: MFCC (13 coefficients) of the 20 frames of highest energy, in time order, after trimming
 silence; the frame hop is a fixed fraction of the utterance so that a word spoken fast or slow
@@ -47,7 +48,7 @@ def segment_shape(img_bgr: np.ndarray, *, min_area: float = 0.002, where: str | 
     sat = cv2.medianBlur(hsv[:, :, 1], 5)
     otsu, _ = cv2.threshold(sat, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     thr = max(float(otsu), 90.0)
-    mask = (sat > thr).astype(np.uint8)
+    mask: np.ndarray = (sat > thr).astype(np.uint8)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
@@ -126,6 +127,7 @@ def normalize_efd(coeffs: np.ndarray) -> np.ndarray:
         score = float(np.sum(mags[rest] * (c2[rest].real + c2[rest].imag)))
         if score > best_score + 1e-9:
             best, best_score = c2, score
+    assert best is not None  # ``cands`` is never empty (m != 1); only NaN scores would leave it unset
     return _from_phasors(best[:n], best[n:])
 
 

@@ -20,7 +20,7 @@ class Grounder:
     def __init__(self, seed: int = 0):
         self.seed = seed
 
-    def fit(self, F: dict, idx: np.ndarray | None = None) -> "Grounder":
+    def fit(self, F: dict, idx: np.ndarray | None = None) -> Grounder:
         idx = np.arange(len(F["colors"])) if idx is None else np.asarray(idx)
         self.model_ = CompositionalSparse(seed=self.seed).fit(
             [F["color"][idx], F["shape"][idx]], [a[idx] for a in F["audio_seg"]]

@@ -25,8 +25,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from sklearn.cluster import KMeans
 from sklearn.decomposition import DictionaryLearning
-from sklearn.linear_model import lars_path_gram
 from sklearn.exceptions import ConvergenceWarning
+from sklearn.linear_model import lars_path_gram
 from sklearn.metrics import silhouette_score, v_measure_score
 
 LAMBDA = 0.15
@@ -35,7 +35,7 @@ LAMBDA = 0.15
 class BlockScaler:
     """Standardise a feature block and weigh it to unit expected squared norm."""
 
-    def fit(self, X: np.ndarray) -> "BlockScaler":
+    def fit(self, X: np.ndarray) -> BlockScaler:
         X = np.asarray(X, dtype=float)
         self.mean_ = X.mean(axis=0)
         sd = X.std(axis=0)
@@ -55,7 +55,7 @@ class PairedSparse:
     def __init__(self, n_atoms: int = 48, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):
         self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
 
-    def fit(self, X: np.ndarray, Y: np.ndarray) -> "PairedSparse":
+    def fit(self, X: np.ndarray, Y: np.ndarray) -> PairedSparse:
         """Learn from visual ``X (N, dx)`` and audio ``Y (N, dy)`` of the same ``N`` examples."""
         X, Y = np.atleast_2d(X), np.atleast_2d(Y)
         if len(X) != len(Y) or len(X) < 2:
@@ -151,7 +151,7 @@ class CompositionalSparse:
     def __init__(self, n_atoms: int = 24, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):
         self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
 
-    def fit(self, visual: list[np.ndarray], audio: list[np.ndarray], H: np.ndarray | None = None) -> "CompositionalSparse":
+    def fit(self, visual: list[np.ndarray], audio: list[np.ndarray], H: np.ndarray | None = None) -> CompositionalSparse:
         """Learn ``H`` (unless given) and the paired model of every linked pair."""
         if H is None:
             H, M = estimate_linking(visual, audio, seed=self.seed)

@@ -60,6 +60,8 @@ $(PEERS_VENV)/.stamp: pyproject.toml
 bench: install $(PEERS_VENV)/.stamp
 	$(PY) -c "import cv2; cv2.HOGDescriptor()"
 	$(PY) benchmarks/tracking.py
+	$(PY) benchmarks/detector.py
+	$(PY) benchmarks/startup.py
 	$(PY) benchmarks/pose.py
 	$(PY) benchmarks/articulation.py
 	$(PY) benchmarks/language.py

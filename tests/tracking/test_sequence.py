@@ -53,6 +53,11 @@ def test_video_file_and_image_folder(tmp_path, mot_folder):
     assert folder.length == 6 and folder.name == "seq" and folder.det_path is not None
 
 
+def test_img1_given_as_a_relative_path_is_named_by_its_sequence(mot_folder, monkeypatch):
+    monkeypatch.chdir(mot_folder)
+    assert open_sequence("img1").name == mot_folder.name
+
+
 def test_missing_source(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         open_sequence(tmp_path / "nope")

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import cv2
+import filterpy.kalman as filterpy  # the reference implementation (dev extra)
 import numpy as np
-import pytest
 
 from artmotion.tracking.camera import CameraMotion, estimate_motion
 from artmotion.tracking.offline import rts_smooth
 from artmotion.tracking.state import KalmanBank, NoiseEstimator, boxes_to_z, z_to_boxes
-
-filterpy = pytest.importorskip("filterpy.kalman")
 
 
 def _reference(bank: KalmanBank, slot: int, dt: float) -> "filterpy.KalmanFilter":

@@ -352,7 +352,8 @@ def _open_image_folder(folder: Path) -> Sequence:
     # the img1/ folder of a MOTChallenge sequence: its frame rate is in the parent's seqinfo.ini
     ini = parent / "seqinfo.ini"
     fps = _num(_read_seqinfo(ini), "framerate", ini) if ini.is_file() else None
-    seq = Sequence(folder, folder.name if folder.name != "img1" else parent.name, fps or DEFAULT_FPS, w, h,
+    name = folder.name if folder.name != "img1" else parent.resolve().name or folder.name
+    seq = Sequence(folder, name, fps or DEFAULT_FPS, w, h,
                    len(images), images=images, det_path=det, gt_path=gt)
     seq.fps_known = fps is not None
     return seq

@@ -23,7 +23,7 @@ class TrackerConfig:
 
     # -- detections (Sec. 2.4.1) -------------------------------------------------------------
     high: float = 0.5           #: score of a detection in the first association stage and for a birth
-    low: float = 0.1            #: lowest score used at all (second stage: only for tracks seen last frame)
+    low: float = 0.2            #: lowest score used at all (second stage: only for tracks seen last frame)
     # -- state (Sec. 2.5.1, Eq. 2.10) ---------------------------------------------------------
     accel: float = 0.5          #: acceleration std of the centre, box sizes per s²
     size_accel: float = 0.1     #: acceleration std of width/height, box sizes per s²

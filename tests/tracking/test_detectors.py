@@ -14,6 +14,7 @@ from artmotion.geometry import iou
 from artmotion.io import read_mot
 from artmotion.tracking import MultiObjectTracker, TrackerConfig, open_sequence, run_tracker, track
 from artmotion.tracking.detectors import (
+    Detector,
     HOGDetector,
     SSDLiteDetector,
     _ssd_anchors,
@@ -166,3 +167,27 @@ def test_unknown_detector(run_cli, tmp_path):
 def test_bad_detect_every(run_cli, k):
     code, _, err = run_cli("track", str(SAMPLE), "--detect-every", k)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "detect-every" in err
+
+
+def test_a_detector_of_your_own(tmp_path, tud_frames):
+    """track() takes any Detector; it runs on every detect_every-th frame only."""
+    _, frames = tud_frames
+    gt = read_mot(SAMPLE / "gt" / "gt.txt")
+    seen = []
+
+    class Truth(Detector):
+        name = "truth"
+
+        def detect(self, frame):
+            n = len(seen) * 3 + 1            # detect_every=3: frames 1, 4, 7, ...
+            seen.append(n)
+            g = gt[(gt[:, 0] == n) & (gt[:, 6] != 0)]
+            return g[:, 2:6], np.full(len(g), 0.9)
+
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    for n, img in frames[:12]:
+        cv2.imwrite(str(folder / f"{n:06d}.jpg"), img)
+    res = track(folder, fps=25, detector=Truth(), detect_every=3)
+    assert res.detector == "truth" and seen == [1, 4, 7, 10]
+    assert res.num_tracks >= 4

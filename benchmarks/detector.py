@@ -34,14 +34,14 @@ sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from tracking import replace_block  # noqa: E402
-from tracking_loo import KEYS, SEQUENCES  # noqa: E402
+from tracking_loo import KEYS, SEQUENCES, _load  # noqa: E402
 
 from artmotion.geometry import iou  # noqa: E402
 from artmotion.io import read_mot, write_mot  # noqa: E402
 from artmotion.tracking import MultiObjectTracker, TrackerConfig, evaluate, open_sequence, run_tracker  # noqa: E402
-from artmotion.tracking.api import _work_reduce  # noqa: E402
 from artmotion.tracking.detect import load_detections  # noqa: E402
 from artmotion.tracking.detectors import HOGDetector, SSDLiteDetector  # noqa: E402
+from artmotion.tracking.metrics import apply_rules  # noqa: E402
 
 SIDES = (300, 384, 480)
 CANDIDATES = {**{f"ssdlite-{s}": (SSDLiteDetector, {"short_side": s}) for s in SIDES}, "hog": (HOGDetector, {})}
@@ -52,18 +52,17 @@ def _hash() -> str:
     return hashlib.sha256((ROOT / "src/artmotion/tracking/detectors.py").read_bytes()).hexdigest()[:12]
 
 
-def detections(name: str, cand: str, frames, cache: Path) -> tuple[dict, float]:
+def detections(name: str, cand: str, cache: Path) -> tuple[dict, float]:
     """``{frame: (N, 5)}`` of candidate ``cand`` on sequence ``name`` and the seconds it took
-    (from the cache when there)."""
+    (from the cache when there; frames are decoded only to fill it)."""
     path = cache / name / f"{cand}.txt"
     meta = path.with_suffix(".json")
     if not meta.is_file():
         cls, params = CANDIDATES[cand]
         det = cls(**params)
         rows, t0 = [], time.perf_counter()
-        for n, img in frames():
-            d = det(img)
-            rows += [[n, -1, *r[:4], r[4], -1, -1, -1] for r in d]
+        for n, img in open_sequence(SEQUENCES[name]).frames():
+            rows += [[n, -1, *r[:4], r[4], -1, -1, -1] for r in det(img)]
         seconds = time.perf_counter() - t0
         path.parent.mkdir(parents=True, exist_ok=True)
         write_mot(path, np.array(rows).reshape(-1, 10))
@@ -71,35 +70,24 @@ def detections(name: str, cand: str, frames, cache: Path) -> tuple[dict, float]:
     return (load_detections(path) if path.stat().st_size else {}), json.loads(meta.read_text())["seconds"]
 
 
-def ground_truth(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(boxes to find, boxes to ignore) as MOT rows: MOT17 rules for 9-column ground truth
-    (pedestrians with consider = 1; distractor classes ignored), else rows with conf 0 ignored."""
-    g = read_mot(path)
-    care = (g[:, 6] == 1) & (g[:, 7] == 1) if g.shape[1] == 9 else g[:, 6] != 0
-    return g[care], g[~care]
-
-
-def average_precision(dets: dict, gt: np.ndarray, ignored: np.ndarray) -> dict:
-    """PASCAL VOC all-point average precision at IoU 0.5 over all frames; a detection on an ignored
-    box is neither right nor wrong. Also the recall and precision of the detections scored >= 0.5."""
+def average_precision(dets: dict, gt_path: Path) -> dict:
+    """PASCAL VOC all-point average precision at IoU 0.5 over all frames, under the rules the
+    tracks are scored by (:func:`artmotion.tracking.metrics.apply_rules`: MOT17's on MOT16-09 —
+    pedestrians only, detections on distractors removed). Also the recall and precision of the
+    detections scored >= 0.5."""
+    rows = np.array([[f, -1, *r] for f, d in dets.items() for r in d]).reshape(-1, 7)
+    gt, rows = apply_rules(read_mot(gt_path), rows, "auto")
     hits = []
-    for f in np.unique(np.concatenate([gt[:, 0], np.array(list(dets), dtype=float)])).astype(int):
-        d = dets.get(f)
-        if d is None or not len(d):
-            continue
-        g, ig = gt[gt[:, 0] == f, 2:6], ignored[ignored[:, 0] == f, 2:6]
+    for f in np.unique(rows[:, 0]):
+        d, g = rows[rows[:, 0] == f], gt[gt[:, 0] == f, 2:6]
         free = np.ones(len(g), bool)
-        for i in np.argsort(-d[:, 4], kind="stable"):
-            if len(g):
-                o = np.where(free, np.asarray(iou(d[i:i + 1, :4], g)).reshape(-1), -1.0)
-                j = int(np.argmax(o))
-                if o[j] >= 0.5:
-                    free[j] = False
-                    hits.append((d[i, 4], 1))
-                    continue
-            if len(ig) and np.asarray(iou(d[i:i + 1, :4], ig)).max() >= 0.5:
-                continue
-            hits.append((d[i, 4], 0))
+        for i in np.argsort(-d[:, 6], kind="stable"):
+            o = np.where(free, iou(d[i, 2:6], g), -1.0) if len(g) else np.zeros(1) - 1.0
+            j = int(np.argmax(o))
+            hit = bool(o[j] >= 0.5)
+            if hit:
+                free[j] = False
+            hits.append((d[i, 6], hit))
     if not hits or not len(gt):
         return {"AP": 0.0, "R@0.5": 0.0, "P@0.5": 0.0}
     score, hit = np.array(sorted(hits, key=lambda h: -h[0])).T
@@ -112,11 +100,12 @@ def average_precision(dets: dict, gt: np.ndarray, ignored: np.ndarray) -> dict:
             "P@0.5": float(tp[n5 - 1] / n5) if n5 else 0.0}
 
 
-def track_scores(seq, frames, dets: dict, gt_path: Path, experts=("det", "motion"), every: int = 1) -> dict:
-    """MOTA/IDF1/HOTA of the tracker (default settings) on ``dets`` kept on every ``every``-th frame."""
-    red = _work_reduce(seq.width, seq.height)
+def track_scores(name: str, dets: dict, experts=("det", "motion"), every: int = 1) -> dict:
+    """MOTA/IDF1/HOTA of the tracker (default settings) on ``dets`` of sequence ``name``, the
+    detections used on every ``every``-th frame (frames decoded once, by tracking_loo's loader)."""
+    seq, red, frames, _, gt_path = _load(name)
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=TrackerConfig())
-    n = run_tracker(tracker, frames(red), dets, reduce=red, decode=red, detect_every=every)
+    n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red, detect_every=every)
     rows, _ = tracker.finish(n)
     s = evaluate(gt_path, rows)
     return {k: float(s[k]) for k in KEYS}
@@ -133,71 +122,41 @@ def _cells(s: dict, keys=KEYS) -> str:
 def run(names, cache: Path, log=print) -> dict:
     res: dict = {"seq": {}}
     for name in names:
-        path = SEQUENCES[name]
-        seq = open_sequence(path)
-        full = list(seq.frames())
-        small: dict = {}
-
-        def frames(reduce: int = 1, full=full, seq=seq, small=small):
-            if reduce == 1:
-                return iter(full)
-            if reduce not in small:
-                small[reduce] = list(seq.frames(reduce=reduce))
-            return iter(small[reduce])
-
-        gt, ignored = ground_truth(path / "gt" / "gt.txt")
-        r: dict = {"frames": len(full), "size": f"{seq.width}x{seq.height}"}
-        pub = load_detections(path / "det" / "det.txt")
-        r["published"] = {**average_precision(pub, gt, ignored),
-                          **track_scores(seq, frames, pub, path / "gt" / "gt.txt")}
+        seq, _, _, published, gt_path = _load(name)
+        r: dict = {"published": {**average_precision(published, gt_path), **track_scores(name, published)}}
         for cand in CANDIDATES:
-            dets, seconds = detections(name, cand, frames, cache)
-            r[cand] = {**average_precision(dets, gt, ignored), **track_scores(seq, frames, dets, path / "gt" / "gt.txt"),
-                       "fps": len(full) / seconds}
+            dets, seconds = detections(name, cand, cache)
+            r[cand] = {**average_precision(dets, gt_path), **track_scores(name, dets), "fps": seq.length / seconds}
             log(f"{name} {cand}: AP {r[cand]['AP']:.3f}  MOTA/IDF1/HOTA {_cells(r[cand])}  {r[cand]['fps']:.1f} frames/s")
         res["seq"][name] = r
     return res
 
 
-def choose_side(res: dict) -> dict:
-    """Leave one sequence out: the short side with the best mean objective on the others."""
-    names = list(res["seq"])
-    out = {}
-    for held in [*names, "all"]:
-        train = [n for n in names if n != held]
-        side = max(SIDES, key=lambda s: (np.mean([objective(res["seq"][n][f"ssdlite-{s}"]) for n in train]), -s))
-        out[held] = side
-    return out
+def loo_choice(scores: dict, names) -> dict:
+    """Leave one sequence out: for each held-out sequence (and ``all``), the candidate of
+    ``scores`` (candidate -> sequence -> MOTA/IDF1/HOTA) with the best mean objective on the
+    others; ties go to the first candidate."""
+    cands = list(scores)
+    return {held: max(cands, key=lambda c: (np.mean([objective(scores[c][n]) for n in names if n != held]),
+                                            -cands.index(c)))
+            for held in [*names, "all"]}
 
 
-def choose_every(every: dict, names) -> dict:
-    """Leave one sequence out: the k (detector on every k-th frame, experts det,motion) with the
-    best mean objective on the others."""
-    ks = sorted({k for k, e in every if e == "det,motion"})
-    out = {}
-    for held in [*names, "all"]:
-        train = [n for n in names if n != held]
-        out[held] = max(ks, key=lambda k: (np.mean([objective(every[(k, "det,motion")][n]) for n in train]), -k))
-    return out
-
-
-def every_k(res: dict, side: int, names, cache: Path, log=print) -> dict:
-    """Tracking with the detector on every k-th frame, with and without the KLT expert."""
+def every_k(side: int, names, cache: Path, log=print) -> dict:
+    """Tracking with the detector on every k-th frame, with and without the KLT expert:
+    ``{(k, experts): {sequence: scores}}``."""
     out: dict = {}
     for name in names:
-        path = SEQUENCES[name]
-        seq = open_sequence(path)
-        small = list(seq.frames(reduce=_work_reduce(seq.width, seq.height)))
-        dets, _ = detections(name, f"ssdlite-{side}", None, cache)
+        dets, _ = detections(name, f"ssdlite-{side}", cache)
         for k in EVERY:
             for experts in (("det", "motion"), ("det", "klt", "motion")):
-                s = track_scores(seq, lambda red, small=small: iter(small), dets, path / "gt" / "gt.txt", experts, k)
-                out.setdefault((k, ",".join(experts)), {})[name] = s
+                out.setdefault((k, ",".join(experts)), {})[name] = track_scores(name, dets, experts, k)
         log(f"{name}: every-k done")
     return out
 
 
 def tables(res: dict, sides: dict, every: dict | None) -> str:
+    """The markdown tables; ``sides``: :func:`loo_choice` of the short side."""
     names = list(res["seq"])
     cols = ["published", *CANDIDATES]
     lines = ["| sequence | detections | AP@0.5 | recall / precision at score 0.5 | MOTA | IDF1 | HOTA | detector frames/s |",
@@ -227,7 +186,7 @@ def tables(res: dict, sides: dict, every: dict | None) -> str:
         for (k, experts), per in every.items():
             m = {key: float(np.mean([per[n][key] for n in names])) for key in KEYS}
             lines.append(f"| {k} | {experts} | {_cells(m)} |")
-        ks = choose_every(every, names)
+        ks = loo_choice({k: every[(k, "det,motion")] for k in EVERY}, names)
         held = [every[(ks[n], "det,motion")][n] for n in names]
         lines += ["", "Leave one sequence out, k chosen on the other four (experts det,motion):", "",
                   "| held out | chosen k | MOTA | IDF1 | HOTA | every frame: MOTA | IDF1 | HOTA |",
@@ -251,8 +210,8 @@ def main(argv=None) -> int:
     cache = Path(args.cache or ROOT / "out" / f"detections-{_hash()}")
     log = lambda m: print(m, flush=True)  # noqa: E731
     res = run(names, cache, log)
-    sides = choose_side(res)
-    every = None if args.no_every else every_k(res, sides["all"], names, cache, log)
+    sides = loo_choice({side: {n: res["seq"][n][f"ssdlite-{side}"] for n in names} for side in SIDES}, names)
+    every = None if args.no_every else every_k(sides["all"], names, cache, log)
     text = tables(res, sides, every)
     print(text)
     if args.out != "-":

@@ -158,8 +158,9 @@ def run_pipeline(
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run) as dst:
-        manifest, tracks = _run_into(dst, seq, source, fingerprint, det, (detector, detect_every), object_class,
-                                     experts, progress, video, pose, gt)
+        detection = {"det": det, "detector": detector, "detect_every": detect_every}
+        manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress, video,
+                                     pose, gt)
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
@@ -179,14 +180,15 @@ def _is_run(folder: Path) -> bool:
     return MANIFEST in names and names <= RUN_FILES
 
 
-def _run_into(out: Path, seq, source, fingerprint: str, det, detector: tuple[str, int], object_class: str,
-              experts, progress: bool, video: bool, pose, gt) -> tuple[dict, np.ndarray]:
+def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_class: str, experts,
+              progress: bool, video: bool, pose, gt) -> tuple[dict, np.ndarray]:
     """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
-    written yet) and the tracks."""
+    written yet) and the tracks. ``detection``: :func:`~artmotion.tracking.track`'s ``det``,
+    ``detector`` and ``detect_every``."""
     from artmotion.app.report import write_report
     from artmotion.tracking import evaluate, track
 
-    kwargs: dict = {"det": det, "detector": detector[0], "detect_every": detector[1], "progress": progress}
+    kwargs: dict = {**detection, "progress": progress}
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
         # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and

@@ -91,17 +91,19 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
 
 
 def _with_detections(frames, detections: dict, detector, every: int = 1):
-    """``(number, image, detections)`` for each frame, on every ``every``-th frame (``None`` on
-    the others: not detected): from ``detections`` (a frame it does not list has none), or from
-    a ``detector`` run one frame ahead on a worker thread."""
-    from concurrent.futures import Future, ThreadPoolExecutor
+    """``(number, image, detections)`` for each frame, ``None`` for detections on the frames other
+    than every ``every``-th (not detected): from ``detections`` (a frame it does not list has
+    none), or from a ``detector`` run one frame ahead on a worker thread."""
+    if detector is None:
+        for k, (n, img) in enumerate(frames):
+            yield n, img, detections.get(n, _NONE) if k % every == 0 else None
+        return
+    from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1, thread_name_prefix="artmotion-detect") as pool:
         pending = None
         for k, (n, img) in enumerate(frames):
-            job: Future | np.ndarray | None = None
-            if k % every == 0:
-                job = pool.submit(detector, img) if detector is not None else detections.get(n, _NONE)
+            job = pool.submit(detector, img) if k % every == 0 else None
             if pending is not None:
                 yield _done(*pending)
             pending = (n, img, job)
@@ -110,7 +112,7 @@ def _with_detections(frames, detections: dict, detector, every: int = 1):
 
 
 def _done(n: int, img: np.ndarray, job):
-    return n, img, job.result() if hasattr(job, "result") else job
+    return n, img, None if job is None else job.result()
 
 
 _NONE = np.zeros((0, 5))

@@ -33,7 +33,7 @@ from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 
-__all__ = ["evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
+__all__ = ["apply_rules", "evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
 
 EPS = np.finfo(float).eps
 #: The HOTA localisation thresholds (the same floats TrackEval uses).
@@ -82,7 +82,7 @@ def _remove_distractor_matches(gt: np.ndarray, res: np.ndarray) -> np.ndarray:
     return res[keep]
 
 
-def _apply_rules(gt: np.ndarray, res: np.ndarray, rules: str) -> tuple[np.ndarray, np.ndarray]:
+def apply_rules(gt: np.ndarray, res: np.ndarray, rules: str) -> tuple[np.ndarray, np.ndarray]:
     """Ground truth and results as they are scored under ``rules`` (see the module docstring)."""
     if rules not in RULES:
         raise InputError(f"unknown rules {rules!r} (choose from {', '.join(RULES)})")
@@ -322,7 +322,7 @@ def _load_pair(gt, res, rules: str, k: int | None = None) -> tuple[np.ndarray, n
     res_arr, res_path = _load(res, "results" + suffix)
     _check_ids(gt_arr, "ground truth", gt_path)
     _check_ids(res_arr, "results", res_path)
-    return _apply_rules(gt_arr, res_arr, rules)
+    return apply_rules(gt_arr, res_arr, rules)
 
 
 def _scores(gt: np.ndarray, res: np.ndarray, thr: float, per_alpha: bool) -> dict:

@@ -203,8 +203,9 @@ class OnlineTracker:
         if self.first_frame is None:
             self.first_frame = n
         # misses count frames of time: on a detected frame, those since the last detected one
-        gap = n - self._detected_at if frame.detected and self._detected_at is not None else int(frame.detected)
+        gap = 0
         if frame.detected:
+            gap = n - self._detected_at if self._detected_at is not None else 1
             self._detected_at = n
         dets = frame.detections
         if dets is not None and len(dets):

@@ -35,8 +35,10 @@ def fit(
     time: Optional[bool] = typer.Option(None, "--time/--no-time",
                                         help="First column is time (default: header 't'/'time' or 4/8 columns)."),
     order: int = typer.Option(2, "--order", help="Taylor order of the motion variables (2 = constant velocity)."),
-    noise_floor: float = typer.Option(0.005, "--noise-floor", help="Least observation noise std (data units; 5 mm)."),
-    max_radius: float = typer.Option(1.0, "--max-radius", help="Largest expected joint radius (data units)."),
+    noise_floor: float = typer.Option(0.0, "--noise-floor",
+                                      help="Least observation noise std (data units); the noise is estimated per model."),
+    radius_range: tuple[float, float] = typer.Option((0.05, 1.0), "--radius-range",
+                                                     help="Prior range of a hinge's radius (data units; 5 cm - 1 m)."),
 ):
     """Classify a trajectory online (static, prismatic, revolute; poses also planar, rigid)."""
     from artmotion.articulation.trajectory import fit_trajectory
@@ -44,12 +46,13 @@ def fit(
     check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     check_range("--min-samples", min_samples, 3, 1_000_000, integer=True)
     check_range("--order", order, 1, 6, integer=True)
-    check_range("--noise-floor", noise_floor, 0.0, 1e12, lo_open=True)
-    check_range("--max-radius", max_radius, 0.0, 1e12, lo_open=True)
+    check_range("--noise-floor", noise_floor, 0.0, 1e12)
+    check_range("--radius-range", radius_range[0], 0.0, 1e12, lo_open=True)
+    check_range("--radius-range", radius_range[1], radius_range[0], 1e12, lo_open=True)
     if not traj.exists():
         raise InputError("no such file", path=traj)
     out = fit_trajectory(traj, time=time, threshold=threshold, min_samples=min_samples, order=order,
-                         noise_floor=noise_floor, max_radius=max_radius)
+                         noise_floor=noise_floor, radius_range=radius_range)
     if as_json:
         typer.echo(json.dumps(out, allow_nan=False))
         return
@@ -63,6 +66,11 @@ def fit(
         typer.echo(f"  first passed the threshold: {fd['model']} at sample {fd['at']} (revised later)")
     if out.get("probabilities"):
         typer.echo("probabilities: " + ", ".join(f"{k} {v:.3f}" for k, v in out["probabilities"].items()))
+    margin = out.get("margin") or {}
+    if margin.get("log_odds") is not None:
+        typer.echo(f"margin over {margin['runner_up']}: {margin['log_odds']:.1f} nats (log-odds)")
+    if out.get("noise_per_model"):
+        typer.echo("noise std per model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in out["noise_per_model"].items()))
     for k, v in out.get("configuration", {}).items():
         typer.echo(f"  {k}: {_fmt(v)}")
     if out.get("prediction"):

@@ -69,20 +69,23 @@ def _orthonormal_to(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, _cross3(n, u)
 
 
-def fit_circle_2d(P: np.ndarray, init: tuple | None = None) -> tuple[np.ndarray, float]:
+def fit_circle_2d(P: np.ndarray, init: tuple | None = None, weights=None) -> tuple[np.ndarray, float]:
     """Circle through 2-D points: algebraic (Kasa) fit, refined by Gauss-Newton on the geometric
     distance. Linear in ``(cx, cy, r^2 - |c|^2)`` — the "separate" estimate of Table 4.1.
 
     ``init``: a previous circle ``(centre, radius)``; Gauss-Newton starts from it instead of the
     algebraic fit when its geometric cost is lower (re-fits as samples arrive converge in fewer steps).
+    ``weights``: per-point weights (robust re-weighting), or None for all ones.
     """
     P = np.asarray(P, dtype=float)
-    mu = P.mean(axis=0)
+    w = np.ones(len(P)) if weights is None else np.asarray(weights, dtype=float)
+    mu = (w @ P) / w.sum()
     Q = P - mu
-    scale = max(float(np.sqrt((Q**2).sum(axis=1).mean())), 1e-12)
+    scale = max(float(np.sqrt(w @ (Q**2).sum(axis=1) / w.sum())), 1e-12)
     Q = Q / scale
-    A = np.column_stack([2 * Q, np.ones(len(Q))])
-    b = (Q**2).sum(axis=1)
+    sw = np.sqrt(w)
+    A = np.column_stack([2 * Q, np.ones(len(Q))]) * sw[:, None]
+    b = (Q**2).sum(axis=1) * sw
     sol, *_ = np.linalg.lstsq(A, b, rcond=None)
     c = sol[:2]
     r = math.sqrt(max(sol[2] + c @ c, 1e-24))
@@ -91,14 +94,14 @@ def fit_circle_2d(P: np.ndarray, init: tuple | None = None) -> tuple[np.ndarray,
         ri = float(init[1]) / scale
 
         def cost(cc, rr):
-            return float(np.sum((np.sqrt(((Q - cc) ** 2).sum(axis=1)) - rr) ** 2))
+            return float(w @ (np.sqrt(((Q - cc) ** 2).sum(axis=1)) - rr) ** 2)
 
         if cost(ci, ri) < cost(c, r):
             c, r = ci, ri
     # geometric refinement (a few Gauss-Newton steps; stop if the radius explodes = a line);
     # J^T J and J^T res from sums over the points (J rows: -(d / rho), -1)
     qx, qy = np.ascontiguousarray(Q[:, 0]), np.ascontiguousarray(Q[:, 1])
-    n = float(len(Q))
+    n = float(w.sum())
     cx, cy = float(c[0]), float(c[1])
     for _ in range(10):
         dx = qx - cx
@@ -109,10 +112,11 @@ def fit_circle_2d(P: np.ndarray, init: tuple | None = None) -> tuple[np.ndarray,
         ux = dx / rho
         uy = dy / rho
         res = rho - r
-        # normal equations (J^T J) step = -J^T res with J = -[u, 1]: a symmetric 3x3 system in floats
-        a11, a12, a13 = float(ux @ ux), float(ux @ uy), float(ux.sum())
-        a22, a23, a33 = float(uy @ uy), float(uy.sum()), n
-        b1, b2, b3 = float(ux @ res), float(uy @ res), float(res.sum())
+        wx, wy, wr = w * ux, w * uy, w * res
+        # weighted normal equations (J^T W J) step = -J^T W res with J = -[u, 1]: a symmetric 3x3 system
+        a11, a12, a13 = float(wx @ ux), float(wx @ uy), float(wx.sum())
+        a22, a23, a33 = float(wy @ uy), float(wy.sum()), n
+        b1, b2, b3 = float(ux @ wr), float(uy @ wr), float(wr.sum())
         c11 = a22 * a33 - a23 * a23
         c12 = a13 * a23 - a12 * a33
         c13 = a12 * a23 - a13 * a22
@@ -169,7 +173,11 @@ class PointModel:
     name = "base"
     dof = 0
 
-    def fit(self, X: np.ndarray) -> PointModel:  # pragma: no cover - interface
+    #: configuration parameters of the model for 3-D and for 2-D points (its charge in the BIC score)
+    n_params = {3: 0, 2: 0}
+
+    def fit(self, X: np.ndarray, weights=None) -> PointModel:  # pragma: no cover - interface
+        """Configuration from points ``X`` (``(n, 3)``), each weighted by ``weights`` (None: all 1)."""
         raise NotImplementedError
 
     def motion(self, X: np.ndarray) -> np.ndarray:
@@ -192,15 +200,28 @@ class PointModel:
         raise NotImplementedError
 
 
+def _weighted_mean(X: np.ndarray, weights) -> np.ndarray:
+    return X.mean(axis=0) if weights is None else (weights @ X) / weights.sum()
+
+
+def _principal_axes(X: np.ndarray, mu: np.ndarray, weights) -> np.ndarray:
+    """Rows: principal directions of the (weighted) points about ``mu``, largest spread first."""
+    D = X - mu
+    if weights is not None:
+        D = D * np.sqrt(weights)[:, None]
+    return np.linalg.svd(D, full_matrices=False)[2]
+
+
 class StaticModel(PointModel):
     name = "static"
     dof = 0
+    n_params = {3: 3, 2: 2}  # the centre
 
     def __init__(self, centre=None):
         self.centre = None if centre is None else np.asarray(centre, dtype=float)
 
-    def fit(self, X):
-        self.centre = np.asarray(X, dtype=float).mean(axis=0)
+    def fit(self, X, weights=None):
+        self.centre = _weighted_mean(np.asarray(X, dtype=float), weights)
         return self
 
     def motion(self, X):
@@ -221,16 +242,16 @@ class StaticModel(PointModel):
 class PrismaticModel(PointModel):
     name = "prismatic"
     dof = 1
+    n_params = {3: 4, 2: 2}  # a line
 
     def __init__(self, origin=None, direction=None):
         self.origin = None if origin is None else np.asarray(origin, dtype=float)
         self.direction = None if direction is None else _unit(direction)
 
-    def fit(self, X):
+    def fit(self, X, weights=None):
         X = np.asarray(X, dtype=float)
-        mu = X.mean(axis=0)
-        _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
-        d = Vt[0]
+        mu = _weighted_mean(X, weights)
+        d = _principal_axes(X, mu, weights)[0]
         if (X[-1] - X[0]) @ d < 0:  # q grows along the track
             d = -d
         # origin: the first sample's projection on the line, so q(0) ~ 0
@@ -272,6 +293,7 @@ class RevoluteModel(PointModel):
 
     name = "revolute"
     dof = 1
+    n_params = {3: 6, 2: 3}  # the circle's plane (3-D only), its centre in the plane and radius
 
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
         self.centre = None if centre is None else np.asarray(centre, dtype=float)
@@ -286,21 +308,17 @@ class RevoluteModel(PointModel):
             self._v = _cross3(self.axis, self.u)
         return self._v
 
-    def fit(self, X):
+    def fit(self, X, weights=None):
         X = np.asarray(X, dtype=float)
-        mu = X.mean(axis=0)
-        if self.planar_axis is not None:
-            n = _unit(self.planar_axis)
-        else:
-            _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
-            n = Vt[2]
+        mu = _weighted_mean(X, weights)
+        n = _unit(self.planar_axis) if self.planar_axis is not None else _principal_axes(X, mu, weights)[2]
         e1, e2 = _orthonormal_to(n)
         P = np.column_stack([(X - mu) @ e1, (X - mu) @ e2])
         init = None
         if getattr(self, "warm", False) and self.centre is not None and self.radius is not None:
             d = self.centre - mu
             init = (np.array([d @ e1, d @ e2]), self.radius)
-        c2, r = fit_circle_2d(P, init)
+        c2, r = fit_circle_2d(P, init, weights)
         centre = mu + c2[0] * e1 + c2[1] * e2
         # orient the axis so that the angle grows along the track (right-hand rule)
         a0 = X[0] - centre
@@ -353,6 +371,7 @@ class PlanarModel(PointModel):
 
     name = "planar"
     dof = 2
+    n_params = {3: 3, 2: 0}  # the plane
 
     def __init__(self, origin=None, normal=None, planar_axis=None):
         self.origin = None if origin is None else np.asarray(origin, dtype=float)
@@ -361,14 +380,14 @@ class PlanarModel(PointModel):
         if self.normal is not None:
             self.u, self.v = _orthonormal_to(self.normal)
 
-    def fit(self, X):
+    def fit(self, X, weights=None):
         X = np.asarray(X, dtype=float)
-        mu = X.mean(axis=0)
+        mu = _weighted_mean(X, weights)
         if self.planar_axis is not None:
             n = _unit(self.planar_axis)
             self.u, self.v = _orthonormal_to(n)
         else:
-            _, _, Vt = np.linalg.svd(X - mu, full_matrices=False)
+            Vt = _principal_axes(X, mu, weights)
             n, self.u = Vt[2], Vt[0]
             self.v = _cross3(n, self.u)
         self.origin = mu + ((X[0] - mu) @ self.u) * self.u + ((X[0] - mu) @ self.v) * self.v

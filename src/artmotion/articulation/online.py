@@ -1,51 +1,63 @@
-"""Online articulation model selection, Algorithm 1 (Section 4.5).
+"""Online articulation model selection, Algorithm 1 (Section 4.5), with Occam-sound scores.
 
-After ``min_samples`` observations every candidate model fits its configuration ``C_j`` (models.py)
-and starts a filter on its motion variables with a Taylor model of order ``n`` (Eq. 4.12-4.14).
-Each new observation ``z_k`` (a 3-D point) is predicted by every model through ``f_M(C_j, q)``;
-the innovation log-likelihood ``log P(z_k | Z_{0:k-1}, M_j)`` (an EKF where ``f_M`` is non-linear)
-updates the model probabilities ``mu_j(k)`` by Eq. 4.16. A model is decided when its probability
-passes ``tau``.
+After ``min_samples`` observations every candidate model (static, prismatic = a line, revolute =
+a circle) fits its configuration ``C_j`` (models.py) and its noise, and every new observation
+``z_k`` (a 2-D or 3-D point) adds its log-likelihood under each model to that model's score,
+Eq. 4.16 in log space; the probabilities ``mu_j(k)`` are the normalised exponentials of the scores.
 
-All models are scored in the *same observation space* (3-D point positions with the same noise
-``R = sigma^2 I``) and the process noise is set in that space too (a white-noise acceleration of
-the point, ``sigma_a`` in length/step^2, is ``sigma_a / r`` in angle for a revolute joint), so a
-model with more freedom is not favoured by a different scale. Because configurations fitted from
-7 samples are poor (a short arc is nearly a line), every model re-fits its configuration as
-samples arrive (each time the count grows by 10 %, at least by one sample) and restarts its
-filter on the recent window; the model probabilities carry on.
+Likelihood of a sample. It splits into the residual ``e`` off the model's manifold (``dim - dof``
+dimensions; all of ``z - centre`` for the static model) and the position ``s`` along it (the
+line's coordinate, the circle's arc length). ``e`` is scored by a Student-t density (``nu`` = 4
+degrees of freedom) with the model's own noise scale ``sigma_j``; ``s`` by the predictive density
+of a Kalman filter with a Taylor model of order ``n`` (Eq. 4.12-4.14) that integrates the motion
+out (white noise on its acceleration, estimated from the samples' second differences less the
+noise's share). A line and a circle through the same samples move alike along them, so both are
+scored along the motion by the line's filter: the choice between them rests on their geometry.
 
-The noise ``sigma`` is ``max(noise_floor, sigma_hat)`` where ``sigma_hat`` is a robust (median
-absolute deviation) estimate from the second differences of the (last 500) samples: the data's
-own noise, never below the floor (default 5 mm, a tracker's typical accuracy, in metres). The
-acceleration noise of the point is ``0.05 sigma`` per time unit squared unless given.
+Noise from the data, per model. At each configuration fit every model re-fits by iteratively
+re-weighted least squares under the Student-t (a plain fit, then two re-weighted ones) and
+estimates ``sigma_j`` as the t-scale of its residuals: a few slips of the gripper are down-weighted
+instead of making every model look impossible. ``noise`` fixes one ``sigma`` for all models (SLAM
+knows its sensor); ``noise_floor`` bounds the estimate from below.
 
-Nested models. A line is a circle of infinite radius and a point is a circle of zero radius, so
-evidence between them is only counted where the data can tell them apart at the noise level:
+Score (BIC over effective samples):
 
-* a "circle" with radius below ``sigma`` cannot gain over the static model;
-* an arc can gain over the line once it has turned ``theta_min = sqrt(8 sigma / r_max)``, bulges
-  from its chord by ``sigma`` and beats the line's squared residuals by chi^2_2(0.1 %) = 13.8
-  noise units; the line can gain over the arc once the motion is ``L_min = sqrt(8 sigma r_max)``
-  long (then an arc of the largest expected radius ``r_max``, default 1 m, would differ from it by
-  ``sigma``); before either, both score their mixture (Bayes factor held at 1);
-* once the line could be told from an arc but the fitted arc is not credible, the revolute
-  probability counts for prismatic in the decision (the arc *is* the line at this noise).
+    score_j(k) = w L_j(k) - (p_j / 2) log(w k) + log O_j
 
-Decision. A model is decided while its probability exceeds ``tau``; "static" must in addition have
+``L_j``: the sum of the log-likelihoods; ``p_j``: parameters fitted to the same samples (the
+configuration: static 3, line 4 in 3-D, 2 and 2 in 2-D; the noise levels); ``w = T / tau``: what
+one sample is worth. Real residuals are correlated (arm compliance): ``tau`` is the integrated
+autocorrelation time of the circle's residuals (Geyer's initial positive sequence; the richest
+model's, where no structure is left), and ``T`` (``temperature``) calibrates what remains. A
+circle is charged as the line it bends plus the Occam factor ``O_j`` of its curvature
+(:meth:`OnlineEstimator._curvature_occam`): with the radius log-uniform on ``radius_range`` (a line
+is a circle of infinite radius), a short arc whose curvature the data cannot pin costs nothing and
+leaves line and circle tied, while a long, nearly straight one, or a circle larger than any hinge,
+pays. ``T`` (0.25) was chosen by leave-one-mechanism-out on the shared logs and synthetic ones;
+``radius_range`` (5 cm - 1 m) is the physical range of furniture and tool hinges
+(benchmarks/articulation_choice.py, docs/articulation.md).
+
+Re-fits. Configurations fitted from 7 samples are poor, so every model re-fits its configuration
+and noise as samples arrive (each time the count grows by ``refit_growth``, 20 %, at least by one
+sample) and its score becomes the log-likelihood of all samples under the new fit (between
+re-fits, new samples add their predictive log-likelihoods). Motion that reverses (open, close,
+open again) is one more acceleration of the motion variable: no fit assumes monotone motion and
+the circle's angle is unwrapped.
+
+Decision. A model is decided when its probability exceeds ``tau`` and stays decided until another
+model is (``hold``); "static" must in addition have
 stayed above ``tau`` for as many samples again as it took to get there (see :meth:`_decide`): the
 static model is nested in every moving one (speed zero), so the data can favour it only by Occam's
 factor and cannot refute a motion that has not started yet; the observation time is the only time
 scale available.
 
-Cost. The per-sample filter steps of the common models (static; one motion variable with constant
-velocity) run on Python floats; samples live in a growing array; a configuration re-fit computes
-each model's motion variables once (sweep and squared residuals for the separability test come from
-them) and the circle's Gauss-Newton refinement works on sums over the points.
+Cost. A sample's step runs on Python floats; samples live in a growing array; re-fits are
+O(log n) and the circle's Gauss-Newton refinement works on sums over the points.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 
@@ -53,23 +65,12 @@ import numpy as np
 
 from artmotion.articulation.models import as_points3, make_model
 from artmotion.errors import InputError
-from artmotion.filters import taylor_model
+from artmotion.filters import taylor_model, taylor_transition
 
-__all__ = ["OnlineEstimator", "OnlineResult", "estimate_online", "robust_noise"]
+__all__ = ["OnlineEstimator", "OnlineResult", "autocorrelation_time", "curvature_occam", "estimate_online", "robust_scale"]
 
 _LOG2PI = math.log(2.0 * math.pi)
 _FQ_CACHE: dict = {}
-_STATIC_FQ = (np.eye(3), np.zeros((3, 3)))
-
-
-def robust_noise(X: np.ndarray) -> float:
-    """Per-axis noise std from second differences (MAD), averaged over axes with motion."""
-    X = np.asarray(X, dtype=float)
-    if len(X) < 4:
-        return 0.0
-    dd = np.ascontiguousarray((X[2:] - 2.0 * X[1:-1] + X[:-2]).T)  # second differences, (3, m)
-    mad = 1.4826 * _median_rows(np.abs(dd - _median_rows(dd)[:, None])) / math.sqrt(6.0)
-    return float(np.sqrt(np.mean(mad**2)))
 
 
 def _median_rows(A: np.ndarray) -> np.ndarray:
@@ -82,257 +83,286 @@ def _median_rows(A: np.ndarray) -> np.ndarray:
     return 0.5 * (B[:, h - 1] + B[:, h])
 
 
+def _t_const(nu: float | None, d: int) -> float:
+    """Normalising constant of a ``d``-dimensional Student-t (``nu``) or Gaussian (None) density."""
+    if nu is None:
+        return -0.5 * d * _LOG2PI
+    return math.lgamma(0.5 * (nu + d)) - math.lgamma(0.5 * nu) - 0.5 * d * math.log(nu * math.pi)
+
+
+def robust_scale(e2: np.ndarray, d: int, nu: float | None, iters: int = 5) -> tuple[float, np.ndarray]:
+    """Scale ``s^2`` of residuals with squared norms ``e2`` in ``d`` dimensions under a Student-t
+    (``nu``) or Gaussian (None) model, by iteratively re-weighted least squares; and the weights."""
+    n = max(len(e2), 1)
+    s2 = float(e2.sum()) / (n * d)
+    w = np.ones(len(e2))
+    if nu is None or not s2 > 0.0:
+        return s2, w
+    for _ in range(iters):
+        w = (nu + d) / (nu + e2 / s2)
+        s2 = max(float(w @ e2) / (n * d), 1e-300)
+    return s2, w
+
+
+def autocorrelation_time(E: np.ndarray) -> float:
+    """Integrated autocorrelation time ``tau = 1 + 2 sum_k rho(k)`` of the rows of ``E`` (``(n, d)``:
+    a vector series, its components pooled), by Geyer's initial positive sequence (the sum runs while
+    consecutive pairs ``rho(2m) + rho(2m + 1)`` stay positive). ``n / tau`` samples carry as much
+    information as independent ones."""
+    E = np.asarray(E, dtype=float)
+    E = E - E.mean(axis=0)
+    n = len(E)
+    if n < 4:
+        return 1.0
+    m = 1 << (2 * n - 1).bit_length()
+    F = np.fft.rfft(E, m, axis=0)
+    acf = np.fft.irfft((F * F.conj()).real.sum(axis=1), m)[:n]
+    if not acf[0] > 0.0:
+        return 1.0
+    rho = acf / acf[0]
+    pairs = rho[: n - n % 2].reshape(-1, 2).sum(axis=1)  # Gamma_m = rho(2m) + rho(2m + 1)
+    neg = np.flatnonzero(pairs <= 0.0)
+    stop = int(neg[0]) if neg.size else len(pairs)
+    tau = 2.0 * float(pairs[:stop].sum()) - 1.0
+    return float(min(max(tau, 1.0), n / 2.0))
+
+
+def curvature_occam(khat: float, sk: float, radius_range: tuple[float, float], m: int) -> float:
+    """``log E_prior[exp(-|k - k_hat|^2 / (2 sk^2))]`` for a curvature vector ``k`` with ``m`` (1 or 2)
+    components whose magnitude ``1 / r`` has ``r`` log-uniform on ``radius_range`` (direction uniform);
+    ``k_hat``: magnitude of the fitted curvature. By quadrature over ``|k|`` on a log grid."""
+    lo, hi = 1.0 / radius_range[1], 1.0 / radius_range[0]
+    rho = np.geomspace(lo, hi, 256)
+    a0, a1 = max(lo, khat - 8.0 * sk), min(hi, khat + 8.0 * sk)
+    if a0 < a1:  # resolve a likelihood narrower than the grid
+        rho = np.union1d(rho, np.linspace(a0, a1, 129))
+    a = (rho - khat) ** 2 / (2.0 * sk * sk)
+    if m == 2:  # average over the direction: exp(-(rho^2 + k^2) / 2 s^2) I0(rho k / s^2)
+        g = np.exp(-a) * _i0e(rho * khat / (sk * sk))
+    else:  # both signs
+        g = np.exp(-a) + np.exp(-((rho + khat) ** 2) / (2.0 * sk * sk))
+        g = 0.5 * g
+    dens = g / (rho * math.log(hi / lo))  # the log-uniform prior density of |k|
+    return float(math.log(max(float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(rho))), 1e-300)))
+
+
+def _i0e(x: np.ndarray) -> np.ndarray:
+    """``exp(-x) I0(x)`` for ``x >= 0`` (numpy's i0 overflows; asymptotic form beyond 30)."""
+    x = np.asarray(x, dtype=float)
+    out = np.empty_like(x)
+    small = x < 30.0
+    out[small] = np.exp(-x[small]) * np.i0(x[small])
+    xb = x[~small]
+    out[~small] = (1.0 + 1.0 / (8.0 * xb) + 9.0 / (128.0 * xb * xb)) / np.sqrt(2.0 * np.pi * xb)
+    return out
+
+
 class _ModelFilter:
-    """EKF on the motion variables of one fitted point model (observation = 3-D point)."""
+    """One candidate model's evidence: a fitted configuration, its noise, and a Kalman filter on
+    the position *along* the model's manifold.
 
-    swept: float  #: motion range of the last configuration fit (set by ``OnlineArticulation``)
-    rss: float  #: squared residuals of the last configuration fit (set by ``OnlineArticulation``)
+    A sample ``z`` splits into its residual ``e`` off the manifold (``d = dim - dof`` dimensions;
+    all of ``z - centre`` for the static model) and its position along it, the motion variable in
+    length units ``s`` (the line's coordinate, the circle's arc length ``r q``). The log-likelihood
+    of ``z`` is ``log t_d(e; sigma)`` plus the predictive log-likelihood of ``s`` under the Taylor
+    model of order ``n`` (Eq. 4.12-4.14, white noise ``accel`` on the highest derivative, observation
+    noise ``sigma``). A line and a circle through the same samples have nearly the same ``s``: their
+    temporal terms cancel and the choice between them rests on the geometry; the static model has
+    no motion and scores all ``dim`` dimensions as residual.
 
-    def __init__(self, model, order: int):
-        self._x: np.ndarray | None = None
-        self._P: np.ndarray | None = None
-        # scalar state of the fast paths (static: x0, x1, x2, p; cv1: q, q', p00, p01, p11)
-        self._s: tuple[float, ...] | None = None
-        self._prm: tuple | None = None  # the model's parameters as floats, cached between configuration fits
-        self._prm_src: np.ndarray | None = None
+    ``nu``: Student-t degrees of freedom (None: Gaussian), for the residual and for the filter,
+    whose update inflates the noise of an observation far off its prediction by the inverse t-weight
+    ``(nu + 1) / (nu + m)`` (``m``: its squared Mahalanobis distance) so one slip does not drag it.
+    """
+
+    sigma: float  #: observation noise std off the manifold (set by ``OnlineEstimator``)
+    sigma_along: float  #: observation noise std along it (set by ``OnlineEstimator``)
+    accel: float  #: process noise std of the motion in length units (set by ``OnlineEstimator``)
+    residuals: np.ndarray  #: residual vectors of the last configuration fit
+
+    def __init__(self, model, order: int, nu: float | None = None, dim: int = 3):
         self.model = model
-        self.order = order if model.dof > 0 else 1
+        self.order = order
         self.dof = model.dof
+        self.nu = nu
+        self.d = dim if model.dof == 0 else max(dim - model.dof, 0)
+        self._cd = _t_const(nu, self.d)
+        self._c1 = _t_const(nu, 1)
+        self.x: np.ndarray | None = None  # filter state per motion variable: (dof, order)
+        self.P: np.ndarray | None = None  # (dof, order, order)
+        self._q_last = 0.0  # last motion variable of a circle (its angle is unwrapped against it)
 
-    # the state lives in Python floats on the fast paths (no array per step); arrays on demand
-    def _sync(self):
-        s = self._s
-        if s is not None:
-            if self.dof == 0:
-                self._x = np.array(s[:3])
-                self._P = np.diag([s[3]] * 3)
-            else:
-                self._x = np.array(s[:2])
-                self._P = np.array([[s[2], s[3]], [s[3], s[4]]])
-            self._s = None
+    def _t(self, m: float, d: int, c: float) -> float:
+        """log density of a ``d``-dim standardised residual with squared norm ``m`` (t or Gaussian)."""
+        if self.nu is None:
+            return c - 0.5 * m
+        return c - 0.5 * (self.nu + d) * math.log1p(m / self.nu)
 
-    @property
-    def x(self):
-        self._sync()
-        return self._x
+    def _geometry(self, e2: np.ndarray) -> float:
+        """Sum of the residuals' log-densities, ``sum log t_d(e; sigma)``."""
+        if self.d == 0:
+            return 0.0
+        m = e2 / self.sigma**2
+        base = len(e2) * (self._cd - self.d * math.log(self.sigma))
+        if self.nu is None:
+            return float(base - 0.5 * m.sum())
+        return float(base - 0.5 * (self.nu + self.d) * np.log1p(m / self.nu).sum())
 
-    @x.setter
-    def x(self, value):
-        self._sync()
-        self._x = value
-        self._prm = None
+    def _lengths(self, q: np.ndarray) -> np.ndarray:
+        """Motion variables ``(n, dof)`` in length units."""
+        return q * self.model.radius if self.model.name == "revolute" else q
 
-    @property
-    def P(self):
-        self._sync()
-        return self._P
-
-    @P.setter
-    def P(self, value):
-        self._sync()
-        self._P = value
-
-    def _FQ(self, dt: float, accel: float):
-        if self.dof == 0:  # static: the 3-D position itself, constant
-            return _STATIC_FQ
-        var = accel**2
-        if self.model.name == "revolute":
-            var = var / max(self.model.radius, 1e-9) ** 2
-        key = (self.order, dt, var, self.dof)
-        FQ = _FQ_CACHE.get(key)
-        if FQ is None:
-            if len(_FQ_CACHE) > 4096:
-                _FQ_CACHE.clear()
-            FQ = _FQ_CACHE[key] = taylor_model(self.order, dt, var, self.dof)
-        return FQ
-
-    def start(self, X: np.ndarray, dts: np.ndarray, sigma: float, accel: float):
-        """Fit nothing; initialise the state from a vague prior and filter the window ``X``."""
-        if self.dof == 0:
-            self.x = X[0].copy()
-            self.P = np.eye(3) * 1e6 * (sigma**2 + 1e-12)
-        else:
-            q = self.model.motion(X[:1])[0]
-            n = self.order * self.dof
-            self.x = np.zeros(n)
-            self.x[:: self.order] = q
-            span = max(float(np.ptp(np.asarray(X), axis=0).max()), sigma, 1e-9)
-            s = span if self.model.name != "revolute" else span / max(self.model.radius, 1e-9)
-            self.P = np.eye(n) * (10.0 * s) ** 2
-        zs = np.asarray(X, dtype=float).tolist()
-        ds = np.asarray(dts, dtype=float).tolist()
-        r2 = sigma * sigma
-        if self.dof == 0:
-            for z in zs[1:]:
-                self._step_static(z, r2)
-        elif self.dof == 1 and self.order == 2:
-            self._filter_cv1(zs[1:], ds, r2, accel)
-        else:
-            for k in range(1, len(X)):
-                self.step(X[k], dts[k - 1], sigma, accel)
-
-    def step(self, z: np.ndarray, dt: float, sigma: float, accel: float) -> float:
-        """Predict over ``dt``, fuse point ``z``; returns the innovation log-likelihood."""
-        r2 = sigma * sigma
-        if self.dof == 0:
-            return self._step_static(z.tolist() if isinstance(z, np.ndarray) else z, r2)
-        if self.dof == 1 and self.order == 2:
-            return self._step_cv1(z.tolist() if isinstance(z, np.ndarray) else z, dt, r2, accel)
-        z = np.asarray(z, dtype=float)
-        F, Q = self._FQ(dt, accel)
-        x = F @ self.x
-        P = F @ self.P @ F.T + Q
-        if self.dof == 1:
-            # H = J e_0^T: rank one, Sherman-Morrison (S = r2 I + p00 J J^T)
-            q = x[0]
-            zhat = self.model.predict1(q)
-            J = self.model.jacobian1(q)
-            y = z - zhat
-            j2 = float(J @ J)
-            jy = float(J @ y)
-            p00 = P[0, 0]
-            d = r2 + p00 * j2
-            g = 1.0 / d
-            col = P[:, 0].copy()
-            self.x = x + col * (jy * g)
-            self.P = P - (j2 * g) * np.outer(col, col)
-            maha = (y @ y - (p00 / d) * jy * jy) / r2
-            logdet = 3 * math.log(r2) + math.log(d / r2)
-            return float(-0.5 * (3 * _LOG2PI + logdet + maha))
-        idx = slice(0, None, self.order)
-        q = x[idx]
-        zhat = self.model.predict(q)[0]
-        J = self.model.jacobian(q)  # (3, dof)
-        H = np.zeros((3, x.shape[0]))
-        H[:, idx] = J
-        y = z - zhat
-        PHt = P @ H.T
-        S = H @ PHt
-        S[np.diag_indices(3)] += r2
-        Sinv = np.linalg.inv(S)
-        K = PHt @ Sinv
-        self.x = x + K @ y
-        self.P = P - K @ PHt.T
-        self.P = 0.5 * (self.P + self.P.T)
-        sign, logdet = np.linalg.slogdet(S)
-        return float(-0.5 * (3 * _LOG2PI + logdet + y @ Sinv @ y))
-
-    def _step_static(self, z, r2: float) -> float:
-        """Static point: isotropic prior and noise keep ``P = p I`` (F = I, Q = 0), a scalar filter."""
-        s = self._s
-        if s is None:
-            assert self._x is not None and self._P is not None  # set by ``start``
-            x0, x1, x2 = self._x.tolist()
-            p = float(self._P[0, 0])
-        else:
-            x0, x1, x2, p = s
-        z0, z1, z2 = z
-        y0, y1, y2 = z0 - x0, z1 - x1, z2 - x2
-        s_ = p + r2
-        g = p / s_
-        self._s = (x0 + g * y0, x1 + g * y1, x2 + g * y2, p - p * g)
-        return -0.5 * (3 * (_LOG2PI + math.log(s_)) + (y0 * y0 + y1 * y1 + y2 * y2) / s_)
-
-    def _step_cv1(self, z, dt: float, r2: float, accel: float) -> float:
-        """The common case (one motion variable, constant velocity) in scalars: same maths as the
-        general path (Eq. 4.13-4.14 with n = 2, rank-one EKF update)."""
-        s = self._s
-        if s is None:
-            assert self._x is not None and self._P is not None  # set by ``start``
-            x0, x1 = self._x.tolist()
-            P = self._P
-            p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
-        else:
-            x0, x1, p00, p01, p11 = s
+    def start(self, X: np.ndarray, T: np.ndarray, skip: int = 2, along: bool = True) -> tuple[float, float]:
+        """Log-likelihoods of all samples ``X`` (times ``T``) under the fitted configuration: off the
+        manifold, and along it with the motion integrated out by the filter (the first ``skip``
+        samples only position it; 0 when ``along`` is False). Leaves the filter at the last sample."""
         m = self.model
-        src = m.origin if m.name == "prismatic" else m.centre
-        prm = self._prm
-        if prm is None or self._prm_src is not src:  # a new configuration fit makes new arrays
-            prm = self._prm = m.params
-            self._prm_src = src
-        var = accel * accel
-        if m.name == "revolute":
-            var /= max(prm[3], 1e-9) ** 2
-        # predict: A = [[1, dt], [0, 1]], Q = var B B^T with B = [dt^2/2, dt]
-        b0, b1 = 0.5 * dt * dt, dt
-        x0 = x0 + dt * x1
-        p00, p01, p11 = (p00 + 2 * dt * p01 + dt * dt * p11 + var * b0 * b0,
-                         p01 + dt * p11 + var * b0 * b1, p11 + var * b1 * b1)
-        z0, z1, z2 = z
-        if m.name == "prismatic":
-            ox, oy, oz, dx, dy, dz = prm
-            y0, y1, y2 = z0 - ox - x0 * dx, z1 - oy - x0 * dy, z2 - oz - x0 * dz
-            jx, jy_, jz = dx, dy, dz
-        else:
-            cx, cy, cz, r, ux, uy, uz, vx, vy, vz = prm
-            co, si = math.cos(x0), math.sin(x0)
-            a, b = r * co, r * si
-            y0, y1, y2 = z0 - cx - a * ux - b * vx, z1 - cy - a * uy - b * vy, z2 - cz - a * uz - b * vz
-            jx, jy_, jz = -b * ux + a * vx, -b * uy + a * vy, -b * uz + a * vz
-        j2 = jx * jx + jy_ * jy_ + jz * jz
-        jy = jx * y0 + jy_ * y1 + jz * y2
-        yy = y0 * y0 + y1 * y1 + y2 * y2
-        d = r2 + p00 * j2
-        g = jy / d
-        x0 += p00 * g
-        x1 += p01 * g
-        c = j2 / d
-        self._s = (x0, x1, p00 - c * p00 * p00, p01 - c * p00 * p01, p11 - c * p01 * p01)
-        maha = (yy - (p00 / d) * jy * jy) / r2
-        return -0.5 * (3 * _LOG2PI + 3 * math.log(r2) + math.log(d / r2) + maha)
+        q = m.motion(X)
+        E = X - m.predict(q)
+        geo = self._geometry(np.einsum("ij,ij->i", E, E))
+        if self.dof == 0:
+            return geo, 0.0
+        self._q_last = float(q[-1, 0])
+        if not along:
+            self.x = None
+            return geo, 0.0
+        S = self._lengths(q)
+        total = 0.0
+        n, o = len(S), self.order
+        skip = min(skip, n)
+        self.x = np.zeros((self.dof, o))
+        self.P = np.zeros((self.dof, o, o))
+        r2 = self.sigma_along**2
+        for j in range(self.dof):
+            # conditioned on the first samples: position (and velocity) from them, the noise's spread
+            x = np.zeros(o)
+            P = np.eye(o) * 1e6 * (r2 + float(np.ptp(S[:, j])) ** 2 + 1e-300)
+            x[0] = S[0, j]
+            P[0, 0] = r2
+            if o > 1 and n > 1:
+                dt = max(float(T[1] - T[0]), 1e-300)
+                x[1] = (S[1, j] - S[0, j]) / dt
+                P[0, 1] = P[1, 0] = r2 / dt
+                P[1, 1] = 2.0 * r2 / dt**2
+            self.x[j], self.P[j] = x, P
+            first = max(skip, 2 if o > 1 else 1)
+            for k in range(first, n):
+                total += self._step_axis(j, float(S[k, j]), float(T[k] - T[k - 1]))
+        return geo, total
 
-    def _filter_cv1(self, zs, ds, r2: float, accel: float):
-        """:meth:`_step_cv1` over a window (the same arithmetic, no likelihoods): filter restarts."""
-        assert self._x is not None and self._P is not None  # set by ``start``
-        x0, x1 = self._x.tolist()
-        P = self._P
-        p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
-        m = self.model
-        prm = self._prm = m.params
-        self._prm_src = m.origin if m.name == "prismatic" else m.centre
-        var = accel * accel
-        rev = m.name == "revolute"
-        if rev:
-            var /= max(prm[3], 1e-9) ** 2
-            cx, cy, cz, r, ux, uy, uz, vx, vy, vz = prm
-        else:
-            ox, oy, oz, dx, dy, dz = prm
-        cos, sin = math.cos, math.sin
-        for (z0, z1, z2), dt in zip(zs, ds):
+    def _step_axis(self, j: int, s: float, dt: float) -> float:
+        """Predict motion variable ``j`` over ``dt``, fuse its observation ``s``; the log-likelihood."""
+        assert self.x is not None and self.P is not None
+        r2 = self.sigma_along**2
+        var = self.accel**2
+        if self.order == 2:  # the common case in floats: A = [[1, dt], [0, 1]], B = [dt^2 / 2, dt]
+            x0, x1 = float(self.x[j, 0]), float(self.x[j, 1])
+            p00, p01, p11 = float(self.P[j, 0, 0]), float(self.P[j, 0, 1]), float(self.P[j, 1, 1])
             b0, b1 = 0.5 * dt * dt, dt
             x0 = x0 + dt * x1
             p00, p01, p11 = (p00 + 2 * dt * p01 + dt * dt * p11 + var * b0 * b0,
                              p01 + dt * p11 + var * b0 * b1, p11 + var * b1 * b1)
-            if rev:
-                co, si = cos(x0), sin(x0)
-                a, b = r * co, r * si
-                y0, y1, y2 = z0 - cx - a * ux - b * vx, z1 - cy - a * uy - b * vy, z2 - cz - a * uz - b * vz
-                jx, jy_, jz = -b * ux + a * vx, -b * uy + a * vy, -b * uz + a * vz
-            else:
-                y0, y1, y2 = z0 - ox - x0 * dx, z1 - oy - x0 * dy, z2 - oz - x0 * dz
-                jx, jy_, jz = dx, dy, dz
-            j2 = jx * jx + jy_ * jy_ + jz * jz
-            jy = jx * y0 + jy_ * y1 + jz * y2
-            d = r2 + p00 * j2
-            g = jy / d
-            x0 += p00 * g
-            x1 += p01 * g
-            c = j2 / d
-            p00, p01, p11 = p00 - c * p00 * p00, p01 - c * p00 * p01, p11 - c * p01 * p01
-        self._s = (x0, x1, p00, p01, p11)
+            y = s - x0
+            sv = p00 + r2
+            m = y * y / sv
+            ll = self._t(m, 1, self._c1) - 0.5 * math.log(sv)
+            if self.nu is not None and m > 1.0:
+                sv = p00 + r2 * (self.nu + m) / (self.nu + 1.0)
+            g0, g1 = p00 / sv, p01 / sv
+            self.x[j, 0], self.x[j, 1] = x0 + g0 * y, x1 + g1 * y
+            self.P[j, 0, 0], self.P[j, 0, 1] = p00 - g0 * p00, p01 - g0 * p01
+            self.P[j, 1, 0], self.P[j, 1, 1] = self.P[j, 0, 1], p11 - g1 * p01
+            return ll
+        F, Q = _taylor(self.order, dt, var)
+        x = F @ self.x[j]
+        P = F @ self.P[j] @ F.T + Q
+        y = s - x[0]
+        sv = P[0, 0] + r2
+        m = y * y / sv
+        ll = self._t(m, 1, self._c1) - 0.5 * math.log(sv)
+        if self.nu is not None and m > 1.0:
+            sv = P[0, 0] + r2 * (self.nu + m) / (self.nu + 1.0)
+        K = P[:, 0] / sv
+        self.x[j] = x + K * y
+        self.P[j] = P - np.outer(K, P[0, :])
+        return float(ll)
 
-    def predict_ahead(self, steps: int, dt: float, accel: float) -> np.ndarray:
+    def step(self, z, dt: float) -> tuple[float, float]:
+        """Log-likelihoods of a new sample ``z`` (3 floats) under the current configuration, off the
+        manifold and (when the filter runs, see :meth:`start`) along it."""
+        m = self.model
+        z0, z1, z2 = z
+        if m.name == "static":
+            c0, c1, c2 = m.centre
+            return self._t(((z0 - c0) ** 2 + (z1 - c1) ** 2 + (z2 - c2) ** 2) / self.sigma**2, self.d, self._cd) \
+                - self.d * math.log(self.sigma), 0.0
+        if m.name == "prismatic":
+            o, dvec = m.origin, m.direction
+            y0, y1, y2 = z0 - o[0], z1 - o[1], z2 - o[2]
+            q = y0 * dvec[0] + y1 * dvec[1] + y2 * dvec[2]
+            e2 = max(y0 * y0 + y1 * y1 + y2 * y2 - q * q, 0.0)
+            s = [q]
+        elif m.name == "revolute":
+            c, u, v, ax = m.centre, m.u, m.v, m.axis
+            y0, y1, y2 = z0 - c[0], z1 - c[1], z2 - c[2]
+            a = y0 * u[0] + y1 * u[1] + y2 * u[2]
+            b = y0 * v[0] + y1 * v[1] + y2 * v[2]
+            h = y0 * ax[0] + y1 * ax[1] + y2 * ax[2]
+            q = self._q_last + math.remainder(math.atan2(b, a) - self._q_last, 2.0 * math.pi)
+            self._q_last = q
+            e2 = (math.hypot(a, b) - m.radius) ** 2 + h * h
+            s = [q * m.radius]
+        else:
+            qv = m.motion(np.array([z]))[0]
+            e = np.asarray(z) - m.predict(qv[None, :])[0]
+            e2 = float(e @ e)
+            s = qv.tolist()
+        geo = 0.0
+        if self.d:
+            geo = self._t(e2 / self.sigma**2, self.d, self._cd) - self.d * math.log(self.sigma)
+        if self.x is None:
+            return geo, 0.0
+        return geo, sum(self._step_axis(j, sj, dt) for j, sj in enumerate(s))
+
+    def velocity(self, X: np.ndarray, T: np.ndarray) -> tuple[float, float]:
+        """Rate of the (first) motion variable at the last sample and its variance, in the model's
+        own units (radians for a circle) per time unit; filters ``X`` if this model's motion was
+        scored by the reference filter."""
+        if not self.dof:
+            return 0.0, 0.0
+        if self.x is None:
+            self.start(X, T)
+        assert self.x is not None and self.P is not None
+        scale = 1.0 / self.model.radius if self.model.name == "revolute" else 1.0
+        v = float(self.x[0, 1]) if self.order > 1 else 0.0
+        p = float(self.P[0, 1, 1]) if self.order > 1 else 0.0
+        return v * scale, p * scale * scale
+
+    def predict_ahead(self, steps: int, dt: float) -> np.ndarray:
         """Mean positions of the next ``steps`` samples (no observations)."""
-        F, _ = self._FQ(dt, accel)
+        m = self.model
+        if self.dof == 0 or self.x is None:
+            return np.repeat(np.asarray(m.centre if self.dof == 0 else m.predict(np.zeros((1, self.dof)))[0])[None, :],
+                             steps, axis=0)
+        F = taylor_transition(self.order, dt)
         x = self.x.copy()
         out = []
         for _ in range(steps):
-            x = F @ x
-            if self.dof == 0:
-                out.append(x.copy())
-            else:
-                out.append(self.model.predict(x[:: self.order])[0])
+            x = x @ F.T
+            s = x[:, 0]
+            q = s / m.radius if m.name == "revolute" else s
+            out.append(m.predict(q[None, :])[0])
         return np.array(out).reshape(-1, 3)
+
+
+def _taylor(order: int, dt: float, var: float):
+    key = (order, dt, var)
+    FQ = _FQ_CACHE.get(key)
+    if FQ is None:
+        if len(_FQ_CACHE) > 4096:
+            _FQ_CACHE.clear()
+        FQ = _FQ_CACHE[key] = taylor_model(order, dt, var, 1)
+    return FQ
 
 
 @dataclass
@@ -341,17 +371,20 @@ class OnlineResult:
 
     model: str | None  # decided model at the end (None: undecided)
     probabilities: dict  # final mu_j
-    decided_at: int | None  # sample index since which ``model`` has stayed above tau
+    decided_at: int | None  # sample index since which ``model`` has stayed decided
     first_decision: tuple | None  # (model, sample index) of the first model to pass tau
     history: np.ndarray  # (n, r) model probabilities per sample (NaN before min_samples)
     names: list
     configuration: dict
     motion: np.ndarray  # (n, dof) motion variables of ``model`` (or of the most probable one)
     prediction: np.ndarray  # (h, dim) predicted next samples
-    sigma: float
+    sigma: float  # observation noise std of ``model`` (estimated unless fixed)
     n: int
     dim: int
     fits: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)  # every model's own noise estimate
+    margin: float = math.inf  # log-odds of the most probable model over the runner-up (nats)
+    runner_up: str | None = None
 
     @property
     def revised(self) -> bool:
@@ -368,6 +401,8 @@ class OnlineResult:
             else {"model": self.first_decision[0], "at": self.first_decision[1]},
             "samples": self.n,
             "noise": self.sigma,
+            "noise_per_model": {k: float(v) for k, v in self.noise.items()},
+            "margin": {"runner_up": self.runner_up, "log_odds": self.margin if math.isfinite(self.margin) else None},
             "configuration": self.configuration,
             "motion": [list(map(float, row)) for row in self.motion],
             "prediction": [list(map(float, row)) for row in self.prediction],
@@ -378,9 +413,15 @@ class OnlineEstimator:
     """Algorithm 1, one observation at a time: ``est.update(z, t)``; ``est.probabilities``.
 
     ``models``: candidate point models; ``threshold``: tau; ``order``: Taylor order n of the
-    motion variables; ``noise_floor``: lower bound of the observation noise std (same unit as the
-    points); ``noise``: fixed observation noise std (None: estimate, see module doc);
-    ``accel``: white-noise acceleration std of the point per time unit squared (None: 0.05 x noise).
+    motion variables; ``noise``: one fixed observation noise std for every model (None: each model
+    estimates its own, see the module doc), never below ``noise_floor``; ``accel``: fixed white-noise
+    acceleration std of the point per time unit squared (None: estimated from the samples);
+    ``refit``/``refit_growth``: re-fit the configurations each time the sample count grows by this
+    factor; ``nu``: Student-t degrees of freedom of the observations (None: Gaussian);
+    ``temperature``: ``T``, the weight of the evidence (see :attr:`weight`); ``radius_range``: prior
+    range of a revolute joint's radius (data units; 5 cm - 1 m, the hinges of furniture and hand
+    tools), see :meth:`_curvature_occam`; ``hold``: a decision stands until another model is decided.
+    ``T`` was chosen by leave-one-mechanism-out (benchmarks/articulation_choice.py).
     """
 
     def __init__(
@@ -390,19 +431,25 @@ class OnlineEstimator:
         min_samples: int = 7,
         order: int = 2,
         noise: float | None = None,
-        noise_floor: float = 0.005,
+        noise_floor: float = 0.0,
         accel: float | None = None,
         dim: int = 3,
         refit: bool = True,
-        window: int = 30,
-        max_radius: float = 1.0,
-        transfer: bool = False,
+        refit_growth: float = 1.2,
+        nu: float | None = 4.0,
+        temperature: float = 0.25,
+        radius_range: tuple[float, float] = (0.05, 1.0),
         confirm_static: bool = True,
+        hold: bool = True,
     ):
         if min_samples < 3:
             raise InputError("min_samples must be at least 3")
         if not 0.0 < threshold < 1.0:
             raise InputError("threshold must lie in (0, 1)")
+        if not refit_growth > 1.0:
+            raise InputError("refit_growth must exceed 1")
+        if not temperature > 0.0:
+            raise InputError("temperature must be positive")
         self.names = list(models)
         self.threshold = threshold
         self.min_samples = min_samples
@@ -412,25 +459,39 @@ class OnlineEstimator:
         self.accel = accel
         self.dim = dim
         self.refit = refit
-        self.window = window
-        self.max_radius = max_radius
-        self.transfer = transfer
+        self.nu = nu
+        self.temperature = temperature
         self._Xbuf = np.empty((64, 3))  # samples in a growing array (doubling): no list -> array copies
         self._Tbuf = np.empty(64)
         self._n = 0
         self.filters: list | None = None
-        self.logp = np.zeros(len(self.names))
+        # log-likelihoods per model: off the manifold, and along it (one-parameter motions share the
+        # reference model's: the line's when it is a candidate; see ``loglik``)
+        self._geo = np.zeros(len(self.names))
+        self._along = np.zeros(len(self.names))
+        one = [j for j, n in enumerate(self.names) if make_model(n, dim).dof == 1]
+        self._ref = (self.names.index("prismatic") if "prismatic" in self.names else one[0]) if one else None
+        self._shares = np.array([j in one for j in range(len(self.names))])
         self.history: list = []
         self.first_decision: tuple[str, int] | None = None
         self.decisions: list = []  # decided model (or None) per sample
         self._above: tuple[int, int] | None = None  # (model index, first sample) of the current run above tau
         self.confirm_static = confirm_static
+        self.hold = hold
         self._next_refit = 0
-        self.sigma = noise if noise is not None else noise_floor
-        self._sep = (False, False)
+        self.refit_growth = refit_growth
+        self._last_fit = 0
+        self.tau = 1.0  # autocorrelation time of the residuals (see ``_autocorrelation``)
         self._static = self.names.index("static") if "static" in self.names else None
-        self._rev = self.names.index("revolute") if "revolute" in self.names else None
-        self._pri = self.names.index("prismatic") if "prismatic" in self.names else None
+        # parameters each model's score is charged ``1/2 log n`` for: configuration, observation
+        # noise and (when it moves and the acceleration is estimated) its process noise; a circle is
+        # charged as a line, its curvature by its Occam factor (``_curvature_occam``)
+        self._charge = np.array([make_model("prismatic" if n == "revolute" else n, dim).n_params[dim]
+                                 + (noise is None) + (accel is None and n != "static") for n in self.names], dtype=float)
+        self._occam = np.zeros(len(self.names))
+        if not 0.0 < radius_range[0] < radius_range[1] < math.inf:
+            raise InputError("radius_range must be (low, high) with 0 < low < high")
+        self.radius_range = (float(radius_range[0]), float(radius_range[1]))
 
     # -- helpers
     @property
@@ -444,24 +505,47 @@ class OnlineEstimator:
         return self._Tbuf[: self._n]
 
     @property
+    def sigma(self) -> float:
+        """The observation noise std of the most probable model (of all models when fixed)."""
+        if self.filters is None:
+            return float(self.noise) if self.noise is not None else self.noise_floor
+        return self.filters[int(np.argmax(self.scores()))].sigma
+
+    def _own_along(self, j: int) -> bool:
+        return not self._shares[j] or j == self._ref
+
+    @property
+    def loglik(self) -> np.ndarray:
+        """Log-likelihood of the samples under every model (Eq. 4.16 summed in log space). A line
+        and a circle through the same samples move alike along them: both are scored along the
+        motion by the line's filter, so that the choice between them rests on their geometry."""
+        along = self._along.copy()
+        if self._ref is not None:
+            along[self._shares] = self._along[self._ref]
+        return self._geo + along
+
+    @property
+    def weight(self) -> float:
+        """What one sample is worth: ``T / tau`` (``tau``: autocorrelation time of the residuals)."""
+        return self.temperature / self.tau
+
+    def scores(self) -> np.ndarray:
+        """``score_j = w sum_i log P(z_i | ...) - p_j / 2 log(w k)``: BIC over the effective sample
+        count ``w k`` (``w``: :attr:`weight`; see the module doc)."""
+        w = self.weight
+        return w * self.loglik - 0.5 * self._charge * math.log(max(w * self._n, 1.0)) + self._occam
+
+    @property
     def probabilities(self) -> dict:
-        """Model probabilities ``mu_j(k)`` (Eq. 4.16), as used for the decision: once the motion is
-        long enough to tell a line from an arc but the fitted arc is not credible (see
-        :meth:`_separable`), the revolute hypothesis *is* the line and its mass goes to prismatic."""
+        """Model probabilities ``mu_j(k)``: the normalised exponentials of :meth:`scores` (Eq. 4.16)."""
         return dict(zip(self.names, self._probs()))
 
     def _probs(self) -> list:
-        lp = self.logp.tolist()
-        m = max(lp)
-        p = [math.exp(v - m) for v in lp]
+        sc = self.scores().tolist()
+        m = max(sc)
+        p = [math.exp(v - m) for v in sc]
         tot = sum(p)
-        p = [v / tot for v in p]
-        if self._rev is not None and self._pri is not None and self.filters is not None:
-            rev_ok, pri_ok = self._sep
-            if pri_ok and not rev_ok:
-                p[self._pri] += p[self._rev]
-                p[self._rev] = 0.0
-        return p
+        return [v / tot for v in p]
 
     @property
     def decision(self) -> str | None:
@@ -471,112 +555,149 @@ class OnlineEstimator:
     def _decide(self, p: list, k: int) -> str | None:
         """The decision rule on the probabilities ``p`` of sample ``k``.
 
-        A model is decided while its probability exceeds ``tau``, except "static", which must also
+        A model is decided when its probability exceeds ``tau``, except "static", which must also
         have stayed above ``tau`` for at least as many samples as were seen before it got there
-        (decided at ``k >= 2 k0`` when it passed ``tau`` at ``k0``). Static is nested in every moving
+        (decided at ``k >= 2 k0`` when it passed ``tau`` at ``k0``). With ``hold`` (default) a
+        decision stands until another model is decided: evidence that wavers below ``tau`` (a
+        re-fit, a stretch of the track that fits both models) does not withdraw it; without, a model
+        is decided only while above ``tau``. Static is nested in every moving
         model (speed zero), so data can favour it only by Occam's factor and can never refute a
         motion that has not started yet; with no time scale of the mechanism known, the observation
         time itself is the only scale: a stillness claimed from ``k0`` samples must be confirmed by
         as long again.
         """
         j = max(range(len(p)), key=p.__getitem__)
+        held = self.decision if self.hold else None
         if not p[j] > self.threshold:
             self._above = None
-            return None
+            return held
         if self._above is None or self._above[0] != j:
             self._above = (j, k)
         if j == self._static and self.confirm_static and k < 2 * self._above[1]:
-            return None
+            return held
         return self.names[j]
 
-    def _sigma(self) -> float:
-        if self.noise is not None:
-            return float(self.noise)
-        return max(self.noise_floor, robust_noise(self.X[-500:]))
+    def _fit_model(self, f: _ModelFilter, X: np.ndarray, floor: float):
+        """Fit ``f``'s configuration to ``X`` robustly and estimate its noise: Student-t re-weighted
+        fits of the configuration and of the scale of its residuals (module doc)."""
+        s2, E = self._irls(f.model, X, max(f.d, 1))
+        line = self.filters[self._ref] if self._ref is not None and self.filters is not None else None
+        if f.model.name == "revolute" and line is not None and line is not f and s2 > line.sigma**2:
+            # a circle that fits worse than the line it contains started from a bad circle: fit afresh
+            cold = copy.deepcopy(f.model)
+            cold.warm = False
+            s2c, Ec = self._irls(cold, X, max(f.d, 1))
+            if s2c < s2:
+                cold.warm = True
+                f.model, s2, E = cold, s2c, Ec
+        f.residuals = E
+        f.sigma = max(math.sqrt(s2), floor) if self.noise is None else max(float(self.noise), floor)
 
-    def _accel(self, sigma: float) -> float:
-        return 0.05 * sigma if self.accel is None else float(self.accel)
+    def _irls(self, m, X: np.ndarray, d: int) -> tuple[float, np.ndarray]:
+        """A plain fit of model ``m`` to ``X``, then two re-weighted by the Student-t; the residuals'
+        t-scale squared (``d`` dimensions) and the residual vectors."""
+        w = None
+        for _ in range(3 if self.nu is not None else 1):
+            m.fit(X, w)
+            q = m.motion(X)
+            E = X - m.predict(q)
+            s2, w = robust_scale(np.einsum("ij,ij->i", E, E), d, self.nu)
+        return s2, E
 
-    def _separable(self) -> tuple[bool, bool]:
-        """May the revolute / the prismatic model gain evidence over the other yet?
+    def _motion_noise(self, X: np.ndarray, sigma: float, dt: float) -> float:
+        """Process noise of the motion (length per time unit squared), the same for every model: the
+        point's acceleration from robust second differences of the samples, less the share of the
+        observation noise ``sigma`` (``Delta^2 x = dt^2 (a_k + a_{k-1}) / 2 + 6 sigma^2`` per axis)."""
+        if self.accel is not None:
+            return float(self.accel)
+        if len(X) < 5:
+            return 0.05 * sigma / dt**2
+        dd = np.ascontiguousarray((X[2:] - 2.0 * X[1:-1] + X[:-2]).T)
+        var = float(np.sum((1.4826 * _median_rows(np.abs(dd - _median_rows(dd)[:, None]))) ** 2))
+        return math.sqrt(max(2.0 * (var - 6.0 * self.dim * sigma**2), (0.05 * sigma) ** 2)) / dt**2
 
-        A line and an arc of the largest expected radius ``r_max`` differ by ``sigma`` once the
-        motion is ``L_min = sqrt(8 sigma r_max)`` long: only then can a line be preferred. An arc
-        can be preferred once it has turned ``theta_min = sqrt(8 sigma / r_max)`` and bulges from
-        its chord by at least ``sigma``; neither before the point has moved ``4 sigma``.
+    def _curvature_occam(self, j: int) -> float:
+        """Log Occam factor of circle ``j``'s curvature over the line it bends.
+
+        A circle is a line bent by a curvature vector ``k`` (``dim - 1`` components, perpendicular to
+        the line; ``|k| = 1 / r``). Prior: the radius is log-uniform on ``radius_range`` (data units;
+        a line is a circle of infinite radius, so a radius beyond the range *is* a line), any bending
+        direction. Likelihood of ``k``: the quadratic through the two fits, peaking at the circle's
+        ``k_hat`` and lower by ``Delta`` (the circle's gain over the line, in effective samples) at
+        the line, ``k = 0``: ``sigma_k = k_hat / sqrt(2 Delta)``. The factor is the prior's expectation
+        of the likelihood relative to its peak (at most 1): a short arc, whose likelihood is flat over
+        the prior, costs nothing and leaves line and circle tied; a well measured one pays the
+        posterior's share of the prior (in 3-D ``log(sigma_k^2 p(k_hat) / k_hat)``, ``p`` the prior
+        density of ``|k|``); a circle outside the range pays for the distance to it. When no circle
+        fits better than the line, the likelihood peaks at ``k = 0`` with the width the residuals'
+        sensitivity to ``k`` gives.
         """
-        assert self.filters is not None and self._rev is not None and self._pri is not None  # see ``_fit_all``
-        rmax = self.max_radius
-        rev = self.filters[self._rev]
-        travel = self.filters[self._pri].swept
-        if travel < 4.0 * self.sigma:
-            return False, False
-        sweep = rev.swept
-        sagitta = rev.model.radius * (1.0 - math.cos(min(sweep, math.pi) / 2.0))
-        rev_ok = sweep >= math.sqrt(8.0 * self.sigma / rmax) and sagitta >= self.sigma
-        if rev_ok:
-            # and the arc must explain the points significantly better than the line: the drop in
-            # squared residuals (in noise units) beats chi^2 with 2 degrees of freedom at 0.1 %
-            rss_line = self.filters[self._pri].rss
-            rss_arc = rev.rss
-            rev_ok = (rss_line - rss_arc) / self.sigma**2 > 13.8
-        pri_ok = travel >= math.sqrt(8.0 * self.sigma * rmax)
-        return rev_ok, pri_ok
+        if self._ref is None or self.names[self._ref] != "prismatic" or self.filters is None:
+            return 0.0
+        f = self.filters[j]
+        khat = 1.0 / max(f.model.radius, 1e-300)
+        gain = self.weight * (self._geo[j] - self._geo[self._ref])
+        if gain > 1e-12:
+            return curvature_occam(khat, khat / math.sqrt(2.0 * gain), self.radius_range, self.dim - 1)
+        # no circle fits better than the line: the likelihood peaks at k = 0 with the width that the
+        # residuals' sensitivity to k gives, c^2 the mean square of s^2 / 2 (s: position along the
+        # line) after its best fit by a line
+        line = self.filters[self._ref]
+        s = line.model.motion(self.X)[:, 0]
+        L = float(np.ptp(s))
+        if not L > 0.0:
+            return 0.0
+        u = (s - s.mean()) / L
+        A = np.column_stack([np.ones_like(u), u])
+        b = 0.5 * u * u
+        res = b - A @ np.linalg.lstsq(A, b, rcond=None)[0]
+        c2 = float(res @ res) / len(u) * L**4
+        sk = line.sigma / math.sqrt(max(self.weight * self._n, 1.0) * max(c2, 1e-300))
+        return curvature_occam(0.0, sk, self.radius_range, self.dim - 1)
 
-    def _window(self) -> int:
-        """Samples a filter (re)start runs over: the recent ``window``, at least ``min_samples``."""
-        return max(self.min_samples, min(self.window, self._n))
+    def _autocorrelation(self) -> float:
+        """``tau`` of the residuals of the richest moving model (the circle, if a candidate): like the
+        noise level of an F-test, the noise's correlation is measured where no structure is left
+        (were the simpler model true, the richer one's residuals would be its noise too)."""
+        assert self.filters is not None
+        moving = sorted((f for f in self.filters if f.dof), key=lambda f: f.model.n_params[self.dim])
+        f = moving[-1] if moving else self.filters[0]
+        return autocorrelation_time(f.residuals[:, : self.dim])
 
-    @staticmethod
-    def _refit(f: _ModelFilter, X: np.ndarray) -> np.ndarray:
-        """Fit ``f``'s configuration to ``X``; set ``f.swept`` and ``f.rss`` (squared residuals, for
-        :meth:`_separable`) from the motion variables, which it returns ``(n, 1)``."""
-        f.model.fit(X)
-        q = f.model.motion(X)
-        f.swept = float(np.ptp(q))
-        f.rss = float(np.sum((X - f.model.predict(q)) ** 2))
-        return q
+    def _floor(self, X: np.ndarray) -> float:
+        """Least noise std: ``noise_floor``, and a relative 1e-9 of the data so that ``sigma^2 > 0``."""
+        return max(self.noise_floor, 1e-9 * max(float(np.ptp(X, axis=0).max()), float(np.abs(X).max())), 1e-100)
 
     def _fit_all(self):
         X = self.X
         T = self.T
-        self.sigma = self._sigma()
-        a = self._accel(self.sigma)
+        floor = self._floor(X)
+        dt = float(np.median(np.diff(T))) if len(T) > 1 else 1.0
         if self.filters is None:
-            self.filters = [_ModelFilter(make_model(n, self.dim), self.order) for n in self.names]
+            self.filters = [_ModelFilter(make_model(n, self.dim), self.order, self.nu, self.dim) for n in self.names]
             for f in self.filters:
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
-        w = self._window()
         for f in self.filters:
-            started = f.x is not None
-            if started and f.model.dof == 0:
-                f.model.fit(X)  # the static filter's state is the position itself: nothing to map
-                continue
-            if started and f.model.dof == 1 and self.transfer:
-                # carry the motion state over to the new configuration: the same predicted point,
-                # velocity and covariance mapped through the Jacobians (dq_new = s dq_old)
-                x0 = float(f.x[0])
-                p_old = f.model.predict1(x0)
-                J_old = f.model.jacobian1(x0)
-                qs = self._refit(f, X)[:, 0]
-                q_new = float(f.model.motion(p_old[None, :])[0, 0])
-                if f.model.name == "revolute":
-                    q_new = qs[-1] + math.remainder(q_new - qs[-1], 2.0 * math.pi)
-                J_new = f.model.jacobian1(q_new)
-                s_ = float(J_new @ J_old) / max(float(J_new @ J_new), 1e-300)
-                f.x = np.array([q_new, s_ * f.x[1]])
-                f.P = f.P * (s_ * s_)
-                continue
-            if f.model.dof == 1:
-                self._refit(f, X)
-            else:
-                f.model.fit(X)
-                f.swept = 0.0
-            f.start(X[-w:], np.diff(T[-w:]), self.sigma, a)
-        if self._rev is not None and self._pri is not None:
-            self._sep = self._separable()
+            self._fit_model(f, X, floor)
+        # the motion's process noise is the same for every model (the point's acceleration); the
+        # noise along the motion is each model's own, as off it (isotropic deviations)
+        moving = [f for f in self.filters if f.dof]
+        if moving:
+            accel = self._motion_noise(X, min(f.sigma for f in moving), dt)
+            for f in moving:
+                f.sigma_along, f.accel = f.sigma, accel
+        for j, f in enumerate(self.filters):
+            # the marginal likelihood of all samples so far under the new configuration and noise
+            self._geo[j], self._along[j] = f.start(X, T, along=self._own_along(j))
+        # the leading model's residuals tell how much one sample is worth (the first time: the
+        # model that fits closest)
+        self.tau = self._autocorrelation()
+        for j, f in enumerate(self.filters):
+            if f.model.name == "revolute":
+                self._occam[j] = self._curvature_occam(j)
         k = len(X)
-        self._next_refit = max(k + 1, int(math.ceil(k * 1.1)))  # geometric schedule: O(log n) re-fits
+        self._last_fit = k
+        self._next_refit = max(k + 1, int(math.ceil(k * self.refit_growth)))  # geometric schedule: O(log n) re-fits
 
     # -- the algorithm
     def update(self, z, t: float | None = None) -> dict:
@@ -602,27 +723,14 @@ class OnlineEstimator:
             self._fit_all()  # Estimate C_j, Estimate Temporal Structure
         else:
             dt = t - self._Tbuf[k - 1]
-            a = self._accel(self.sigma)
             zl = z.tolist()
-            sig = self.sigma
-            ll = [f.step(zl, dt, sig, a) for f in self.filters]
-            if self._static is not None and self._rev is not None and self.filters[self._rev].model.radius < sig:
-                # a "circle" smaller than the noise is a static point, not evidence of rotation
-                ll[self._rev] = min(ll[self._rev], ll[self._static])
-            if self._rev is not None and self._pri is not None:
-                rev_ok, pri_ok = self._sep
-                r, p = ll[self._rev], ll[self._pri]
-                if not (rev_ok or pri_ok):
-                    # line and arc not yet told apart: both score their mixture (Bayes factor 1)
-                    hi = max(r, p)
-                    ll[self._rev] = ll[self._pri] = hi + math.log1p(math.exp(min(r, p) - hi)) - math.log(2.0)
-                elif not rev_ok:
-                    ll[self._rev] = min(r, p)
-                elif not pri_ok:
-                    ll[self._pri] = min(r, p)
-            lp = [u + v for u, v in zip(self.logp.tolist(), ll)]  # Eq. 4.16 in log space
-            m = max(lp)
-            self.logp = np.array([v - m for v in lp])
+            if self.noise is not None:  # fixed by the caller (SLAM updates it as it goes)
+                for f in self.filters:
+                    f.sigma = f.sigma_along = max(float(self.noise), self.noise_floor)
+            for j, f in enumerate(self.filters):  # Eq. 4.16 in log space
+                g, a = f.step(zl, dt)
+                self._geo[j] += g
+                self._along[j] += a
             if self.refit and self._n >= self._next_refit:
                 self._fit_all()
         p = self._probs()
@@ -641,7 +749,9 @@ class OnlineEstimator:
             return OnlineResult(None, {m: 1.0 / len(self.names) for m in self.names}, None, None, hist,
                                 self.names, {}, np.zeros((n, 0)), np.zeros((0, dim)), self.sigma, n, dim)
         probs = self.probabilities
-        best = int(np.argmax([probs[m] for m in self.names]))
+        scores = self.scores()
+        order = np.argsort(-scores)
+        best = int(order[0])
         model = self.decision
         decided_at = None
         if model is not None:
@@ -651,11 +761,17 @@ class OnlineEstimator:
                 decided_at -= 1
         X = self.X
         T = self.T
-        fits = {}
-        for f in self.filters:  # final configurations from all samples
-            f.model.fit(X)
-            fits[f.model.name] = f.model
-        f = self.filters[best]
+        fits, noise = {}, {}
+        for g in self.filters:  # final configurations from all samples (on copies: updates may go on)
+            if self._n > self._last_fit:
+                g = copy.copy(g)
+                g.model = copy.deepcopy(g.model)
+                self._fit_model(g, X, self._floor(X))
+                g.x = None  # the filter state belonged to the previous configuration
+            fits[g.model.name] = g
+            noise[g.model.name] = g.sigma
+        f = fits[self.names[best]]
+        fits = {k: g.model for k, g in fits.items()}
         cfg = f.model.configuration(dim)
         q = f.model.motion(X)
         if f.model.name == "revolute":
@@ -664,12 +780,12 @@ class OnlineEstimator:
             cfg["length_range"] = [float(q.min()), float(q.max())]
         cfg["rms_residual"] = float(np.sqrt(np.mean(f.model.residuals(X) ** 2)))
         dt = float(np.median(np.diff(T))) if n > 1 else 1.0
-        w = self._window()
-        a = self._accel(self.sigma)
-        f.start(X[-w:], np.diff(T[-w:]), self.sigma, a)
-        pred = f.predict_ahead(horizon, dt, a)[:, :dim]
+        if f.dof and f.x is None:  # its motion was scored by the reference filter: run its own
+            f.start(X, T)
+        pred = f.predict_ahead(horizon, dt)[:, :dim]
+        margin = float(scores[order[0]] - scores[order[1]]) if len(order) > 1 else math.inf
         return OnlineResult(model, probs, decided_at, self.first_decision, hist, self.names, cfg, q, pred,
-                            self.sigma, n, dim, fits)
+                            f.sigma, n, dim, fits, noise, margin, str(self.names[order[1]]) if len(order) > 1 else None)
 
 
 def estimate_online(X, t=None, **kwargs) -> OnlineResult:

@@ -369,8 +369,11 @@ class EKFSlam:
         m, Gx, Gz = self._inverse(z)
         est = self.estimators.get(i)
         if est is None:
+            # hinges in this world are metres wide (the radius prior on its scale); landmarks are seen for
+            # short stretches, so configurations are re-fitted every 10 % of samples
             est = OnlineEstimator(threshold=self.threshold, min_samples=self.min_samples, dim=2,
-                                  noise=None, noise_floor=self.point_noise, max_radius=self.max_radius,
+                                  noise=None, noise_floor=self.point_noise,
+                                  radius_range=(0.2 * self.max_radius, self.max_radius), refit_growth=1.1,
                                   accel=self.accel)
             self.estimators[i] = est
             self.first_seen[i] = self.k
@@ -397,7 +400,8 @@ class EKFSlam:
         if name == "revolute":
             qs = model.motion(np.asarray(est.X))[:, 0]
             q = q + 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
-        qdot, vdot = float(f.x[1]) / self.dt, float(f.P[1, 1]) / self.dt**2  # per step -> per second
+        qdot, vdot = f.velocity(np.asarray(est.X), np.asarray(est.T))
+        qdot, vdot = qdot / self.dt, vdot / self.dt**2  # per step -> per second
         if name == "revolute":
             # the circle lies in z = 0: express the angle in world x, y (world angle = atan2 of
             # (point - centre)), so the block's state is (phi, phi') with phi = phi0 + sgn q

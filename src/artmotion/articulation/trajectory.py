@@ -170,7 +170,7 @@ def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_
     """Read ``path`` and fit it (points: Algorithm 1; poses: rigid-body classification)."""
     traj = read_trajectory(path, time=time)
     if traj.quats is not None:
-        noise = kwargs.get("noise") or kwargs.get("noise_floor") or 0.005
+        noise = kwargs.get("noise") or kwargs.get("noise_floor") or 0.005  # rigid bodies: a fixed noise
         out = fit_poses(traj.points, traj.quats, traj.time, noise=noise, min_samples=min_samples)
     else:
         out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)

@@ -1,0 +1,119 @@
+"""Synthetic gripper logs of articulated mechanisms, with the failure shapes of real ones.
+
+Real logs (Sturm et al. 2010) are a gripper's 3-D positions while a robot opens a door or a drawer:
+the motion starts and stops smoothly, the gripper may hold still before the mechanism gives way,
+and the track deviates from the ideal joint by white sensor noise *and* by slow, correlated
+deviations (arm compliance, a handle that turns in the hand). :func:`synthetic_log` draws such logs,
+and the shapes on which model choice is known to fail:
+
+==========================  ==========  =========================================================
+kind                        joint       what makes it hard
+==========================  ==========  =========================================================
+``door``                    revolute    a plain hinge (radius 0.2-0.9 m, 0.9-1.6 rad)
+``drawer``                  prismatic   a plain slide (0.25-0.5 m)
+``curved_drawer``           prismatic   the pull traces a bent path (bend 2-8 mm: an "arc" of 2-8 m)
+``hook_drawer``             prismatic   the first 3-8 cm hook sideways by 3-8 mm
+``slipping_door``           revolute    the gripper slips off the handle 1-3 times by 2-6 cm
+``back_and_forth_door``     revolute    a long log (750-1000 samples): opened, closed, opened
+``static``                  static      a gripper holding a handle that does not move
+==========================  ==========  =========================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["KINDS", "synthetic_log"]
+
+#: kind -> true joint
+KINDS = {
+    "door": "revolute",
+    "drawer": "prismatic",
+    "curved_drawer": "prismatic",
+    "hook_drawer": "prismatic",
+    "slipping_door": "revolute",
+    "back_and_forth_door": "revolute",
+    "static": "static",
+}
+
+
+def _min_jerk(u: np.ndarray) -> np.ndarray:
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
+def _profile(n: int, rng: np.random.Generator, stops=(0.0, 1.0)) -> np.ndarray:
+    """Motion from 0 to 1 (or through ``stops``) in ``n`` samples: still at first (0-15 % of the
+    log), smooth (minimum-jerk) legs, still at the end (0-10 %)."""
+    n0 = int(n * rng.uniform(0.0, 0.15))
+    n1 = int(n * rng.uniform(0.0, 0.10))
+    legs = len(stops) - 1
+    moving = n - n0 - n1
+    edges = np.linspace(0, moving, legs + 1).astype(int)
+    parts = [np.full(n0, stops[0])]
+    for i in range(legs):
+        m = edges[i + 1] - edges[i]
+        parts.append(stops[i] + (stops[i + 1] - stops[i]) * _min_jerk(np.arange(1, m + 1) / m))
+    parts.append(np.full(n1, stops[-1]))
+    return np.concatenate(parts)[:n]
+
+
+def _smooth_noise(n: int, std: float, length: float, rng: np.random.Generator) -> np.ndarray:
+    """``(n, 3)`` correlated deviations: white noise smoothed by a Gaussian of ``length`` samples."""
+    k = np.arange(-int(3 * length), int(3 * length) + 1)
+    g = np.exp(-0.5 * (k / length) ** 2)
+    W = rng.normal(size=(n + len(k) - 1, 3))
+    S = np.column_stack([np.convolve(W[:, i], g, mode="valid") for i in range(3)])
+    return S * (std / max(float(S.std()), 1e-12))
+
+
+def _frame(rng: np.random.Generator) -> np.ndarray:
+    """A random rotation (columns: the mechanism's x, y, z axes in the world)."""
+    Q, R = np.linalg.qr(rng.normal(size=(3, 3)))
+    return Q * np.sign(np.diag(R))
+
+
+def synthetic_log(kind: str, seed: int | np.random.Generator = 0) -> tuple[np.ndarray, str]:
+    """A log ``(n, 3)`` in metres and its true joint; ``kind`` is one of :data:`KINDS`."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown kind {kind!r}; one of {', '.join(KINDS)}")
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    door = KINDS[kind] == "revolute"
+    n = int(rng.integers(750, 1001)) if kind == "back_and_forth_door" else int(rng.integers(230, 701 if door else 301))
+    # noise levels that cover the real logs': white 0.4-1 mm; slow deviations off the ideal joint
+    # 1-4 mm (doors) and 1-2.6 mm (drawers) with autocorrelation times of 10-40 samples
+    # (a gripper holding a handle that does not move pulls on nothing: 0.1-0.5 mm)
+    white = rng.uniform(0.0003, 0.001)
+    slow = rng.uniform(0.001, 0.004) if door else rng.uniform(0.0008, 0.0025)
+    if kind == "static":
+        slow = rng.uniform(0.0001, 0.0005)
+    if kind == "back_and_forth_door":
+        u = _profile(n, rng, stops=(0.0, 1.0, rng.uniform(0.1, 0.4), 1.0))
+    else:
+        u = _profile(n, rng)
+    if door:
+        r = rng.uniform(0.2, 0.9)
+        th = rng.uniform(0.9, 1.6) * u
+        P = np.column_stack([r * np.cos(th), r * np.sin(th), np.zeros(n)])
+        if kind == "slipping_door":
+            for _ in range(int(rng.integers(1, 4))):
+                k0 = int(rng.integers(n // 10, n - n // 10))
+                k1 = min(n, k0 + int(rng.integers(10, 41)))
+                off = rng.uniform(0.02, 0.06) * np.array([1.0, 0.0, rng.choice([-1.0, 1.0])]) / np.sqrt(2.0)
+                ramp = np.minimum(1.0, np.minimum(np.arange(k1 - k0) + 1, k1 - np.arange(k0, k1)) / 3.0)
+                radial = np.column_stack([np.cos(th[k0:k1]), np.sin(th[k0:k1]), np.zeros(k1 - k0)])
+                P[k0:k1] += ramp[:, None] * (off[0] * radial + np.array([0.0, 0.0, off[2]]))
+    elif kind == "static":
+        P = np.zeros((n, 3))
+    else:
+        L = rng.uniform(0.25, 0.5)
+        s = L * u
+        P = np.column_stack([s, np.zeros(n), np.zeros(n)])
+        side = np.array([0.0, np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+        if kind == "curved_drawer":
+            P += (rng.uniform(0.002, 0.008) * 4.0 * u * (1.0 - u))[:, None] * side
+        elif kind == "hook_drawer":
+            h = rng.uniform(0.03, 0.08)
+            P += (rng.uniform(0.003, 0.008) * np.clip(1.0 - s / h, 0.0, 1.0) ** 2)[:, None] * side
+    P = P + _smooth_noise(n, slow, rng.uniform(4.0, 15.0), rng) + rng.normal(0.0, white, (n, 3))
+    return P @ _frame(rng).T + rng.uniform(-1.0, 1.0, 3), KINDS[kind]

@@ -168,6 +168,13 @@ class EventIndex:
             else:
                 self.conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
             self.conn.execute("PRAGMA foreign_keys = ON")
+            if exists:  # a page that still parses may hold damaged rows: answers from it would be wrong
+                with self._errors():
+                    problem = self.conn.execute("PRAGMA quick_check").fetchone()[0]
+                if problem != "ok":
+                    self.conn.close()
+                    raise InputError(f"damaged index ({problem}); build a new one with 'artmotion index add'",
+                                     path=self.path)
         except sqlite3.DatabaseError as exc:
             raise InputError(f"cannot open index: {exc}", path=self.path) from None
         except OSError as exc:

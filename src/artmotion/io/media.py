@@ -140,6 +140,8 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     file."""
     import cv2
 
+    if "\x00" in os.fspath(path):
+        raise InputError("not a file name (it holds a NUL byte)", path=os.fspath(path).replace("\x00", "\\0"))
     if os.path.exists(path) and not os.path.isdir(path) and not os.path.isfile(path):
         raise InputError("not a file (a device or a pipe)", path=path)     # would be read forever
     try:

@@ -27,8 +27,10 @@ import math
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
+from _docs import replace_block
 
 from artmotion.articulation.online import estimate_online
 from artmotion.articulation.synthetic import KINDS, synthetic_log
@@ -217,15 +219,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print(text)
     if not a.no_write:
-        path = os.path.join(os.path.dirname(__file__), "..", "docs", "articulation.md")
-        doc = open(path).read()
-        mark = "<!-- choice-benchmark -->"
-        if doc.count(mark) != 2:
-            print(f"{path}: needs two {mark} markers", file=sys.stderr)
-            return 1
-        head, _, tail = doc.split(mark)
-        with open(path, "w") as fh:
-            fh.write(head + mark + "\n" + text + "\n" + mark + tail)
+        replace_block(Path(__file__).resolve().parents[1] / "docs" / "articulation.md", "choice-benchmark", text)
     return 0
 
 

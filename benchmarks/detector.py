@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from tracking import replace_block  # noqa: E402
+from _docs import replace_block  # noqa: E402
 from tracking_loo import KEYS, SEQUENCES, _load  # noqa: E402
 
 from artmotion.geometry import iou  # noqa: E402

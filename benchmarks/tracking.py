@@ -42,6 +42,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+from _docs import replace_block
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"
@@ -157,18 +158,6 @@ def score_table(results: dict, seqs: list[str], methods: list[str]) -> tuple[str
         verdict["_best_mean"] = best_mean
     verdict["_means"] = means
     return "\n".join(lines), verdict
-
-
-def replace_block(path: Path, name: str, text: str) -> None:
-    """Replace the text between ``<!-- name -->`` and ``<!-- /name -->`` in ``path``."""
-    from artmotion.io import atomic_write
-
-    doc = path.read_text(encoding="utf-8")
-    pat = re.compile(rf"(<!-- {name} -->\n).*?(<!-- /{name} -->)", re.S)
-    if not pat.search(doc):
-        raise SystemExit(f"benchmarks/tracking.py: error: {path}: no <!-- {name} --> block")
-    with atomic_write(path) as fh:
-        fh.write(pat.sub(lambda m: m.group(1) + text.strip() + "\n" + m.group(2), doc))
 
 
 def main(argv=None) -> int:

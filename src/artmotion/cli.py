@@ -43,8 +43,9 @@ def _register_all() -> None:
     from artmotion.language import cli as language_cli
     from artmotion.pose import cli as pose_cli
     from artmotion.tracking import cli as tracking_cli
+    from artmotion.tracking.instruments import cli as tools_cli
 
-    for module in (tracking_cli, pose_cli, articulation_cli, language_cli, app_cli):
+    for module in (tracking_cli, tools_cli, pose_cli, articulation_cli, language_cli, app_cli):
         module.register(app)
 
 

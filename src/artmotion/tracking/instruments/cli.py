@@ -1,0 +1,145 @@
+"""``artmotion tool train|track|eval``: surgical instruments (registered on the root app by :func:`register`)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from artmotion.errors import InputError, check_range
+
+tool_app = typer.Typer(help="Surgical instruments: learn a head detector from annotated frames, track, score.",
+                       no_args_is_help=True)
+
+_TORCH = "the tool commands need PyTorch: pip install 'artmotion[tools]' (or make install)"
+
+
+def _need_torch() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise InputError(_TORCH)
+
+
+def _numbered_frames(source: str):
+    """``(sequence, [(frame number, image path or None)])``: an image folder's frames are numbered
+    by their file names' numbers (as in tools.csv), a video's from 1."""
+    from artmotion.tracking.sequence import _frame_number, open_sequence
+
+    seq = open_sequence(source)
+    if seq.images is None:
+        return seq, None
+    numbers = [_frame_number(p) for p in seq.images]
+    if any(n is None for n in numbers) or len(set(numbers)) != len(numbers):
+        numbers = list(range(1, len(seq.images) + 1))
+    return seq, numbers
+
+
+@tool_app.command("train")
+def train(
+    frames: str = typer.Argument(..., metavar="FRAMES", help="Folder of frames whose file names carry the frame numbers."),
+    tools_csv: Path = typer.Argument(..., metavar="TOOLS_CSV", help="Annotations: frame,tool,y,x,scale,angle."),
+    model: Path = typer.Option(..., "--model", help="Model file to write."),
+    epochs: int = typer.Option(30, "--epochs", help="Passes over the annotated frames."),
+    threshold: float = typer.Option(0.05, "--threshold", help="Least score of a detection the tracker uses (model default)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (augmentation, initial weights)."),
+):
+    """Learn an instrument-head detector (a small network trained on the CPU) from annotated frames."""
+    from artmotion.errors import check_seed
+    from artmotion.io.media import read_image
+    from artmotion.tracking.instruments.annotations import read_tools_csv
+
+    check_range("--epochs", epochs, 1, 1000, integer=True)
+    check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
+    check_seed(seed)
+    _need_torch()
+    heads = read_tools_csv(tools_csv)
+    seq, numbers = _numbered_frames(frames)
+    if numbers is None:
+        raise InputError("FRAMES must be a folder of frames (the annotations name frames by number)", path=frames)
+    assert seq.images is not None
+    by_number = dict(zip(numbers, seq.images))
+    used = [n for n in sorted(heads) if n in by_number]
+    if not used:
+        raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
+    imgs = [read_image(by_number[n]) for n in used]
+    from artmotion.tracking.instruments.detector import ToolDetector
+
+    def progress(epoch: int, total: int, loss: float) -> None:
+        if sys.stderr.isatty():
+            typer.echo(f"\repoch {epoch}/{total}  loss {loss:.3f}", err=True, nl=epoch == total)
+
+    det = ToolDetector(epochs=epochs, threshold=threshold, seed=seed).fit(imgs, [heads[n] for n in used], progress)
+    det.save(model)
+    k = sum(len(heads[n]) for n in used)
+    typer.echo(f"trained on {len(used)} frames ({k} heads) in {det.train_seconds_:.0f} s; wrote {model}")
+
+
+@tool_app.command("track")
+def track(
+    source: str = typer.Argument(..., metavar="SOURCE", help="Folder of frames or a video."),
+    model: Path = typer.Option(..., "--model", help="Model from 'artmotion tool train'."),
+    out: Path = typer.Option(..., "--out", help="Predictions CSV: frame,track,x,y,scale,angle,score."),
+    threshold: Optional[float] = typer.Option(None, "--threshold", help="Least detection score (default: the model's)."),
+    progress: bool = typer.Option(None, "--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+):
+    """Find and track the instruments: one row per instrument per frame, with persistent identities."""
+    from artmotion.tracking.instruments.annotations import write_predictions
+
+    if threshold is not None:
+        check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
+    _need_torch()
+    from artmotion.tracking.instruments.detector import ToolDetector
+    from artmotion.tracking.instruments.track import ToolTracker
+
+    det = ToolDetector.load(model)
+    if threshold is not None:
+        det.threshold = threshold
+    seq, numbers = _numbered_frames(source)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    tracker = ToolTracker(det)
+    pred = {}
+    t0 = time.perf_counter()
+    frames = seq.frames()
+    if progress:
+        from tqdm import tqdm
+
+        frames = tqdm(frames, total=len(seq), unit="frame", leave=False)
+    for i, img in frames:
+        pred[numbers[i - 1] if numbers else i] = tracker.update(img)
+    seconds = time.perf_counter() - t0
+    write_predictions(out, pred)
+    heads = sum(len(r) for r in pred.values())
+    ids = len({int(t) for r in pred.values() for t in r[:, 0]})
+    typer.echo(f"{len(pred)} frames, {heads} heads of {ids} instruments in {seconds:.1f} s "
+               f"({len(pred) / max(seconds, 1e-9):.1f} frames/s); wrote {out}")
+
+
+@tool_app.command("eval")
+def evaluate(
+    gt: Path = typer.Argument(..., metavar="GT.csv", help="Annotations: frame,tool,y,x,scale,angle."),
+    pred: Path = typer.Argument(..., metavar="PRED.csv", help="Predictions: frame,track,x,y,scale,angle,score."),
+    radius: float = typer.Option(15.0, "--radius", help="A head is found within this many pixels."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frames per second of the tracker, to report."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+):
+    """Score predictions: recall and precision of heads within --radius px, shaft angle error, identity switches."""
+    import json
+
+    from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv
+    from artmotion.tracking.instruments.evaluate import evaluate_tools, format_report
+
+    check_range("--radius", radius, 0.0, 1e6, lo_open=True)
+    if fps is not None:
+        check_range("--fps", fps, 0.0, 1e9, lo_open=True)
+    res = evaluate_tools(read_tools_csv(gt), read_predictions(pred), radius=radius, fps=fps)
+    typer.echo(json.dumps(res, allow_nan=False) if as_json else format_report(res))
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``tool`` commands to the root artmotion app."""
+    app.add_typer(tool_app, name="tool")

@@ -1,0 +1,190 @@
+"""A detector of instrument heads learnt from annotated frames: ``artmotion tool train``.
+
+``ToolDetector().fit(frames, heads)`` trains :class:`~artmotion.tracking.instruments.net.HeadNet`
+(CPU, a few minutes for 400 frames on 2 cores) on frames and their annotated heads (``(k, 4)``:
+x, y, size, angle); ``detect(frame)`` returns ``(k, 5)`` rows x, y, size, angle, score. Training
+augments each frame with flips (the angle follows), a random similarity transform (scale ±15 %,
+shift), brightness, contrast and blur, so that the camera's zoom and motion, smoke and exposure
+changes of later frames look like training ones. ``save``/``load`` keep the weights and settings
+in one file (a torch pickle of tensors and numbers only, read with ``weights_only``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from artmotion.errors import InputError, check_range
+
+__all__ = ["ToolDetector"]
+
+_FORMAT = "artmotion-tool-detector-1"
+
+
+class ToolDetector:
+    """Instrument heads from a frame. Parameters as in scikit-learn: set in ``__init__``, fitted
+    state with a trailing underscore.
+
+    ``epochs``: passes over the training frames; ``batch``: frames per step; ``lr``: Adam's step;
+    ``threshold``: least heat-map score of a detection; ``max_heads``: most heads per frame;
+    ``width``: the network's channels; ``seed``: augmentation and initial weights.
+    """
+
+    def __init__(self, epochs: int = 30, batch: int = 8, lr: float = 3e-3, threshold: float = 0.05,
+                 max_heads: int = 4, width: int = 32, seed: int = 0):
+        self.epochs = epochs
+        self.batch = batch
+        self.lr = lr
+        self.threshold = threshold
+        self.max_heads = max_heads
+        self.width = width
+        self.seed = seed
+
+    # ------------------------------------------------------------------ training
+    def fit(self, frames: Sequence[np.ndarray], heads: Sequence[np.ndarray],
+            progress: Callable[[int, int, float], None] | None = None) -> ToolDetector:
+        """Learn from ``frames`` (BGR uint8, one size) and their heads (``(k, 4)`` each, k may be 0).
+        ``progress(epoch, epochs, loss)`` is called after each epoch."""
+        import torch
+
+        from artmotion.tracking.instruments import net
+
+        check_range("epochs", self.epochs, 1, 10_000, integer=True)
+        check_range("batch", self.batch, 1, 1024, integer=True)
+        if len(frames) == 0 or len(frames) != len(heads):
+            raise InputError(f"need frames and their heads, got {len(frames)} frames and {len(heads)} head lists")
+        shape = frames[0].shape
+        if len(shape) != 3 or shape[2] != 3 or any(f.shape != shape for f in frames):
+            raise InputError("training frames must be BGR images of one size")
+        h, w = shape[:2]
+        if h < 4 * net.STRIDE or w < 4 * net.STRIDE:
+            raise InputError(f"frames of {w}x{h} are too small")
+        torch.manual_seed(self.seed)
+        rng = np.random.default_rng(self.seed)
+        model = net.HeadNet(self.width)
+        opt = torch.optim.Adam(model.parameters(), lr=self.lr, weight_decay=1e-4)
+        steps = self.epochs * math.ceil(len(frames) / self.batch)
+        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=self.lr, total_steps=steps)
+        grid = (h // net.STRIDE, w // net.STRIDE)
+        model.train()
+        t0 = time.perf_counter()
+        for epoch in range(self.epochs):
+            order = rng.permutation(len(frames))
+            total = 0.0
+            for s in range(0, len(order), self.batch):
+                idx = order[s:s + self.batch]
+                imgs, hs = zip(*(_augment(frames[i], np.asarray(heads[i], float).reshape(-1, 4), rng) for i in idx))
+                x = net.to_tensor(list(imgs))
+                y = net.targets(list(hs), grid)
+                opt.zero_grad()
+                lo = net.loss(model(x), y)
+                lo.backward()
+                opt.step()
+                sched.step()
+                total += float(lo.detach()) * len(idx)
+            if progress is not None:
+                progress(epoch + 1, self.epochs, total / len(frames))
+        model.eval()
+        self.model_ = model
+        self.frame_shape_ = (h, w)
+        self.train_seconds_ = time.perf_counter() - t0
+        return self
+
+    # ------------------------------------------------------------------ inference
+    def _check_fitted(self):
+        if not hasattr(self, "model_"):
+            raise InputError("the tool detector is not trained (fit it or load a model)")
+
+    def detect(self, frame: np.ndarray) -> np.ndarray:
+        """Heads in one BGR frame: ``(k, 5)`` x, y, size, angle, score, best first."""
+        return self.detect_batch([frame])[0]
+
+    def detect_batch(self, frames: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """:meth:`detect` on several frames of one size at once."""
+        import torch
+
+        from artmotion.tracking.instruments import net
+
+        self._check_fitted()
+        if not frames:
+            return []
+        with torch.inference_mode():
+            maps = self.model_(net.to_tensor(list(frames))).numpy()
+        return [net.decode(m, self.threshold, self.max_heads) for m in maps]
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the model to ``path`` (atomically)."""
+        import torch
+
+        from artmotion.io.atomic import atomic_path
+
+        self._check_fitted()
+        state = {"format": _FORMAT, "width": self.width, "threshold": self.threshold, "max_heads": self.max_heads,
+                 "frame_shape": list(self.frame_shape_), "weights": self.model_.state_dict()}
+        with atomic_path(path) as tmp:
+            torch.save(state, tmp)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ToolDetector:
+        """A detector saved by :meth:`save`; an :class:`InputError` naming the file otherwise."""
+        import torch
+
+        from artmotion.io.files import existing_file
+        from artmotion.tracking.instruments import net
+
+        p = existing_file(path)
+        try:
+            state = torch.load(p, map_location="cpu", weights_only=True)
+        except Exception as exc:  # a truncated or foreign file: torch's own errors vary
+            raise InputError(f"not a tool model ({type(exc).__name__})", path=p) from None
+        if not isinstance(state, dict) or state.get("format") != _FORMAT:
+            raise InputError("not a tool model (train one with 'artmotion tool train')", path=p)
+        try:
+            det = cls(threshold=float(state["threshold"]), max_heads=int(state["max_heads"]), width=int(state["width"]))
+            model = net.HeadNet(det.width)
+            model.load_state_dict(state["weights"])
+            h, w = (int(v) for v in state["frame_shape"])
+            det.frame_shape_ = (h, w)
+        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+            raise InputError(f"damaged tool model ({type(exc).__name__})", path=p) from None
+        if not all(bool(torch.isfinite(t).all()) for t in model.state_dict().values() if t.is_floating_point()):
+            raise InputError("damaged tool model (NaN or infinite weights)", path=p)
+        model.eval()
+        det.model_ = model
+        return det
+
+
+def _augment(img: np.ndarray, heads: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random flip, similarity transform, brightness, contrast and blur of a frame; the heads
+    (x, y, size, angle) follow."""
+    import cv2
+
+    h, w = img.shape[:2]
+    H = heads.copy()
+    s = float(rng.uniform(0.85, 1.15))
+    tx, ty = rng.uniform(-0.1, 0.1) * w, rng.uniform(-0.1, 0.1) * h
+    fx = -1.0 if rng.random() < 0.5 else 1.0
+    fy = -1.0 if rng.random() < 0.5 else 1.0
+    # x' = fx s (x - w/2) + w/2 + tx (and y likewise): flips about the centre, scale, shift
+    A = np.array([[fx * s, 0.0, (1 - fx * s) * w / 2 + tx], [0.0, fy * s, (1 - fy * s) * h / 2 + ty]])
+    out = cv2.warpAffine(img, A, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    if len(H):
+        H[:, 0] = A[0, 0] * H[:, 0] + A[0, 2]
+        H[:, 1] = A[1, 1] * H[:, 1] + A[1, 2]
+        H[:, 2] *= s
+        H[:, 3] = np.mod(np.arctan2(fy * np.sin(H[:, 3]), fx * np.cos(H[:, 3])), 2 * np.pi)
+        inside = (H[:, 0] >= 0) & (H[:, 0] < w) & (H[:, 1] >= 0) & (H[:, 1] < h)
+        H = H[inside]
+    c = float(rng.uniform(0.7, 1.3))
+    b = float(rng.uniform(-30, 30))
+    out = cv2.convertScaleAbs(out, alpha=c, beta=b)
+    if rng.random() < 0.25:
+        out = cv2.GaussianBlur(out, (0, 0), float(rng.uniform(0.5, 1.5)))
+    return out, H

@@ -1,0 +1,200 @@
+"""Instruments tracked through a laparoscopic video: ``artmotion tool track`` (thesis Sec. 2.6.1).
+
+Each instrument head is an entity of a Product of Tracking Experts (Sec. 2.4, Eq. 2.1-2.3) whose
+experts are, frame by frame:
+
+* **motion continuity**: a constant-velocity Kalman filter on the head's position, whose
+  prediction is first carried by the camera's own motion (a similarity from background corners,
+  :func:`~artmotion.tracking.camera.estimate_motion`, with the heads left out);
+* **KLT**: corners around the head followed by pyramidal Lucas-Kanade, checked forward-backward;
+  their median displacement moves the head;
+* **the detector** (:class:`~artmotion.tracking.instruments.detector.ToolDetector`), when one of
+  its detections is assigned to the head (Hungarian assignment within a gate).
+
+Their Gaussians are multiplied (:func:`~artmotion.tracking.pote.fuse`). The shaft angle and the
+head's size come from the detector (the image), smoothed; while no detection supports a head the
+angle turns with the camera. A head is reported while detections support it or for at most
+``coast`` frames without; it is dropped after ``max_miss`` frames. Identities persist: a head is
+born from a detection that no head explains (score at least ``birth``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from artmotion.tracking.camera import estimate_motion
+from artmotion.tracking.experts import Gaussian
+from artmotion.tracking.pote import fuse
+
+__all__ = ["ToolTracker", "track_tools"]
+
+_LK = {"winSize": (15, 15), "maxLevel": 3, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
+
+
+@dataclass
+class _Head:
+    id: int
+    x: np.ndarray  # [px, py, vx, vy]
+    P: np.ndarray
+    size: float
+    angle: float
+    score: float
+    hits: int = 1
+    miss: int = 0
+    history: list = field(default_factory=list)
+
+
+class ToolTracker:
+    """Frame-by-frame tracker of instrument heads; :meth:`update` returns the reported rows
+    ``(k, 6)``: track, x, y, size, angle, score.
+
+    ``detect_std``: the detector's position error (px); ``accel``: the heads' acceleration noise
+    (px / frame^2); ``gate``: largest distance (px) of a detection to a head's prediction;
+    ``birth``: least score of a detection that starts a head; ``coast``/``max_miss``: frames a head
+    is reported / kept without a detection.
+    """
+
+    def __init__(self, detector, detect_std: float = 4.0, accel: float = 4.0, gate: float = 40.0,
+                 birth: float = 0.5, coast: int = 3, max_miss: int = 15, klt: bool = True):
+        self.detector = detector
+        self.detect_std = detect_std
+        self.accel = accel
+        self.gate = gate
+        self.birth = birth
+        self.coast = coast
+        self.max_miss = max_miss
+        self.klt = klt
+        self.heads: list[_Head] = []
+        self._next_id = 0
+        self._prev: np.ndarray | None = None
+        self._bg: np.ndarray | None = None
+
+    # -- experts
+    def _camera(self, grey: np.ndarray) -> np.ndarray | None:
+        if self._prev is None:
+            return None
+        boxes = np.array([[h.x[0] - h.size, h.x[1] - h.size, 2 * h.size, 2 * h.size] for h in self.heads]).reshape(-1, 4)
+        A, self._bg = estimate_motion(self._prev, grey, exclude=boxes, points=self._bg)
+        return A
+
+    def _predict(self, A: np.ndarray | None):
+        F = np.eye(4)
+        F[0, 2] = F[1, 3] = 1.0
+        q = self.accel**2
+        Q = q * np.array([[0.25, 0, 0.5, 0], [0, 0.25, 0, 0.5], [0.5, 0, 1, 0], [0, 0.5, 0, 1]])
+        for h in self.heads:
+            if A is not None:  # the camera carries the head: position by A, velocity by its linear part
+                M = A[:, :2]
+                h.x[:2] = M @ h.x[:2] + A[:, 2]
+                h.x[2:] = M @ h.x[2:]
+                T = np.zeros((4, 4))
+                T[:2, :2] = T[2:, 2:] = M
+                h.P = T @ h.P @ T.T
+                h.angle = (h.angle + math.atan2(A[1, 0], A[0, 0])) % (2 * math.pi)
+            h.x = F @ h.x
+            h.P = F @ h.P @ F.T + Q
+
+    def _klt(self, grey: np.ndarray) -> list[Gaussian | None]:
+        out: list[Gaussian | None] = [None] * len(self.heads)
+        if not self.klt or self._prev is None:
+            return out
+        H, W = grey.shape
+        for i, h in enumerate(self.heads):
+            x, y = h.history[-1][:2] if h.history else h.x[:2]
+            r = int(max(8, 0.5 * h.size))
+            x0, y0, x1, y1 = int(max(0, x - r)), int(max(0, y - r)), int(min(W, x + r)), int(min(H, y + r))
+            if x1 - x0 < 6 or y1 - y0 < 6:
+                continue
+            pts = cv2.goodFeaturesToTrack(self._prev[y0:y1, x0:x1], 20, 0.01, 3, blockSize=3)
+            if pts is None or len(pts) < 4:
+                continue
+            p0 = (pts + np.array([x0, y0], np.float32)).astype(np.float32)
+            p1, st, _ = cv2.calcOpticalFlowPyrLK(self._prev, grey, p0, None, **_LK)  # type: ignore[call-overload]
+            if p1 is None:
+                continue
+            pb, stb, _ = cv2.calcOpticalFlowPyrLK(grey, self._prev, p1, None, **_LK)  # type: ignore[call-overload]
+            ok = (st.ravel() == 1) & (stb.ravel() == 1) & (np.linalg.norm((pb - p0).reshape(-1, 2), axis=1) < 1.0)
+            if ok.sum() < 4:
+                continue
+            d = (p1 - p0).reshape(-1, 2)[ok]
+            med = np.median(d, axis=0)
+            spread = float(np.median(np.linalg.norm(d - med, axis=1))) + 1.0
+            out[i] = Gaussian(np.array([x, y]) + med, np.eye(2) * (spread**2 + 4.0))
+        return out
+
+    # -- one frame
+    def update(self, frame: np.ndarray, detections: np.ndarray | None = None) -> np.ndarray:
+        """Track into BGR ``frame``; ``detections`` ``(k, 5)`` (x, y, size, angle, score) or None to run
+        the detector. Returns the reported heads ``(k, 6)``: track, x, y, size, angle, score."""
+        grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        D = self.detector.detect(frame) if detections is None else np.asarray(detections, float).reshape(-1, 5)
+        A = self._camera(grey)
+        klt = self._klt(grey)
+        self._predict(A)
+        # assignment of detections to heads (distance to the prediction fused with KLT)
+        pri = []
+        for h, g in zip(self.heads, klt):
+            motion = Gaussian(h.x[:2].copy(), h.P[:2, :2].copy())
+            pri.append(fuse([motion, g]) or motion)
+        used, assigned = set(), {}
+        if self.heads and len(D):
+            C = np.array([[np.hypot(*(d[:2] - p.mean)) for d in D] for p in pri])
+            r, c = linear_sum_assignment(C)
+            for i, j in zip(r, c):
+                if C[i, j] <= self.gate:
+                    assigned[i] = j
+                    used.add(j)
+        rows = []
+        keep = []
+        for i, (h, p) in enumerate(zip(self.heads, pri)):
+            det = None
+            if i in assigned:
+                d = D[assigned[i]]
+                det = Gaussian(d[:2].copy(), np.eye(2) * self.detect_std**2)
+            est = fuse([p, det])  # the product of the motion, KLT and detector experts (Eq. 2.3)
+            assert est is not None
+            # Kalman update of the motion filter with the fused position as its measurement
+            R = est.cov + 1e-6 * np.eye(2)
+            S = h.P[:2, :2] + R
+            K = h.P[:, :2] @ np.linalg.inv(S)
+            h.x = h.x + K @ (est.mean - h.x[:2])
+            h.P = h.P - K @ h.P[:2, :]
+            if det is not None:
+                d = D[assigned[i]]
+                h.size = 0.7 * h.size + 0.3 * float(d[2])
+                da = math.remainder(float(d[3]) - h.angle, 2 * math.pi)
+                h.angle = (h.angle + 0.6 * da) % (2 * math.pi)
+                h.score = float(d[4])
+                h.hits += 1
+                h.miss = 0
+            else:
+                h.miss += 1
+                h.score *= 0.8
+            h.history.append(h.x[:2].copy())
+            if h.miss <= self.max_miss:
+                keep.append(h)
+                if h.miss <= self.coast and h.hits >= 2:
+                    rows.append([h.id, h.x[0], h.x[1], h.size, h.angle, h.score])
+        self.heads = keep
+        for j, d in enumerate(D):
+            if j not in used and d[4] >= self.birth:
+                P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0])
+                self.heads.append(_Head(self._next_id, np.array([d[0], d[1], 0.0, 0.0]), P, float(d[2]), float(d[3]),
+                                        float(d[4]), history=[np.array(d[:2])]))
+                self._next_id += 1
+        self._prev = grey
+        return np.array(rows, dtype=float).reshape(-1, 6)
+
+
+def track_tools(frames: Iterable[tuple[int, np.ndarray]], detector, **options) -> Iterator[tuple[int, np.ndarray]]:
+    """Track the instruments of ``(frame number, BGR image)`` pairs; yields ``(frame number, rows)``
+    with rows ``(k, 6)``: track, x, y, size, angle, score (see :class:`ToolTracker`)."""
+    tracker = ToolTracker(detector, **options)
+    for no, img in frames:
+        yield no, tracker.update(img)

@@ -88,6 +88,14 @@ def test_train_track_eval_commands(lap_subset, run_cli, tmp_path):
     res = json.loads(out)
     assert code == 0 and res["precision"] == 1.0 and res["median_angle_error_deg"] < 0.01 and res["fps"] == 12.0
     assert res["matched"] == sum(len(h) for h in perfect.values()) and res["recall"] == pytest.approx(res["matched"] / res["gt"])
+    # the whole pipeline with the tool model: tracks, sentences, report, index
+    code, out, err = run_cli("run", d / "frames", "--tool-model", model, "--out", tmp_path / "run",
+                             "--index", tmp_path / "index.sqlite")
+    assert code == 0, err
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["detections"] == "tool model" and (tmp_path / "run" / "report.html").is_file()
+    assert "video" not in run["files"] and all(t["id"] >= 1 for t in run["track_summary"])
+    assert all(s["subject"] == "tool" for s in run["sentences"])
     # a model that is not one
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a model")
@@ -111,6 +119,16 @@ def test_trained_detector_finds_heads_on_frames_it_saw(lap_subset):
             total += 1
             hit += bool(len(D)) and float(np.min(np.hypot(D[:, 0] - x, D[:, 1] - y))) <= 15
     assert hit / total > 0.5
+
+
+def test_events_from_tracks():
+    from artmotion.language.describe import events_from_tracks
+
+    rows = [[f, 1, 100, 100, 20, 20, 1, -1, -1, -1] for f in range(1, 11)]
+    rows += [[f, 2, 0, 50, 20, 20, 1, -1, -1, -1] for f in range(4, 8)]  # starts and ends at the left border
+    ev = events_from_tracks(np.array(rows, float), (200, 200))
+    assert [(e["type"], e["frame"], e["tracks"], e["side"]) for e in ev] == [("enter", 4, [2], "left"),
+                                                                          ("exit", 7, [2], "left")]
 
 
 def test_loading_a_damaged_model(tmp_path):

@@ -79,6 +79,9 @@ def run_cmd(
     index: Optional[Path] = typer.Option(None, "--index", help="Add the run to this SQLite event index."),
     pose_model: Optional[Path] = typer.Option(None, "--pose-model",
                                               help="Pose model (artmotion pose train): adds opens/closes sentences."),
+    tool_model: Optional[Path] = typer.Option(None, "--tool-model",
+                                              help="Tool model (artmotion tool train): track surgical instruments "
+                                                   "instead of people (no annotated video)."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys
@@ -88,7 +91,7 @@ def run_cmd(
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
-                       pose_model=pose_model, detector=detector, detect_every=detect_every)
+                       pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s")
     for s in res.sentences[:10]:

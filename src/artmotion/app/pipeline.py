@@ -137,6 +137,7 @@ def run_pipeline(
     batch: str | None = None,
     detector: str = "auto",
     detect_every: int = DETECT_EVERY,
+    tool_model: str | os.PathLike | None = None,
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
@@ -144,7 +145,8 @@ def run_pipeline(
     pose regressor, and the tool's opening and closing become sentences. ``batch``: the id of the
     batch that runs it, kept in the manifest (a batch never runs an item twice). ``detector``:
     the built-in detector when ``source`` has no detections (``auto``, ``ssdlite``, ``hog``), run
-    on every ``detect_every``-th frame.
+    on every ``detect_every``-th frame. ``tool_model`` (from ``artmotion tool train``): track
+    surgical instruments with it instead of people; their entries and exits come from the tracks.
     """
     from artmotion.tracking import open_sequence
 
@@ -153,12 +155,17 @@ def run_pipeline(
     # everything that can be checked is checked before the long work: the pose model (loaded and
     # tried on a crop), the ground truth
     pose = load_pose_model(pose_model) if pose_model is not None else None
+    tools = None
+    if tool_model is not None:
+        from artmotion.tracking.instruments.detector import ToolDetector
+
+        tools = ToolDetector.load(tool_model)
     gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run) as dst:
-        detection = {"det": det, "detector": detector, "detect_every": detect_every}
+        detection = {"det": det, "detector": detector, "detect_every": detect_every, "tools": tools}
         manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress, video,
                                      pose, gt)
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
@@ -185,10 +192,12 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
     written yet) and the tracks. ``detection``: :func:`~artmotion.tracking.track`'s ``det``,
     ``detector`` and ``detect_every``."""
-    from artmotion.app.report import write_report
     from artmotion.tracking import evaluate, track
 
     kwargs: dict = {**detection, "progress": progress}
+    tools = kwargs.pop("tools", None)
+    if tools is not None:
+        return _run_tools_into(out, seq, source, fingerprint, tools, object_class, progress, gt)
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
         # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and
@@ -211,6 +220,15 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
         # ground truth whose boxes are all ignored (distractors, conf 0) is no ground truth
         metrics = {k: float(v) for k, v in scores.items()} if scores["GT_DETS"] else None
 
+    return _write_run(out, seq, source, fingerprint, tracks, events, sentences, metrics, result.detector,
+                      float(result.fps), video), tracks
+
+
+def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, events: list, sentences: list,
+               metrics, detections, fps: float, video: bool) -> dict:
+    """Write a run's files (all but the manifest) into ``out``; return the manifest."""
+    from artmotion.app.report import write_report
+
     write_mot(out / "results.txt", tracks)
     write_events(out / "events.jsonl", events)
     with atomic_write(out / "sentences.txt") as fh:
@@ -223,14 +241,31 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
         "sequence": {"length": seq.length, "fps": seq.fps, "width": seq.width, "height": seq.height},
         "files": {"results": "results.txt", "events": "events.jsonl", "sentences": "sentences.txt",
                   "report": "report.html", **({"video": "annotated.mp4"} if video else {})},
-        "detections": result.detector,
+        "detections": detections,
         "track_summary": track_summary(tracks),
         "events": events,
         "sentences": sentences,
         "metrics": metrics,
-        "tracking_fps": float(result.fps),
+        "tracking_fps": fps,
     }
     write_report(out / "report.html", seq, tracks, manifest)
+    return manifest
+
+
+def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_class: str, progress: bool,
+                    gt) -> tuple[dict, np.ndarray]:
+    """:func:`_run_into` for surgical instruments: the tool tracker's heads as tracks (a square of
+    the head's size), entries and exits from the tracks, no annotated video."""
+    from artmotion.language.describe import events_from_tracks
+    from artmotion.tracking.instruments.track import to_mot, track_sequence
+
+    t0 = time.perf_counter()
+    tracks = to_mot(list(track_sequence(seq, tools, progress)))
+    fps = len(seq) / max(time.perf_counter() - t0, 1e-9)
+    events = events_from_tracks(tracks, (seq.width, seq.height))
+    subject = "tool" if object_class == "person" else object_class
+    sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=subject)
+    manifest = _write_run(out, seq, source, fingerprint, tracks, events, sentences, None, "tool model", fps, False)
     return manifest, tracks
 
 

@@ -357,6 +357,28 @@ def pose_changes(
 # all together
 
 
+def events_from_tracks(tracks: np.ndarray, size: tuple[float, float] | None = None,
+                       params: DescribeParams | None = None) -> list[dict]:
+    """Enter and exit events of MOTChallenge ``tracks`` for a tracker that gives none: a track that
+    starts after the first frame enters (by the image border its first box touches, else
+    ``inside``: it appears); one that ends before the last frame exits (or vanishes)."""
+    p = params or DescribeParams()
+    tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
+    if not len(tracks):
+        return []
+    size = size or infer_image_size(tracks)
+    first, last = int(tracks[:, 0].min()), int(tracks[:, 0].max())
+    events = []
+    for tid, t in tracks_from_mot(tracks).items():
+        if t.frames[0] > first:
+            events.append({"type": "enter", "frame": int(t.frames[0]), "tracks": [tid],
+                           "side": border_side(t.first_box, size, p)})
+        if t.frames[-1] < last:
+            events.append({"type": "exit", "frame": int(t.frames[-1]), "tracks": [tid],
+                           "side": border_side(t.last_box, size, p)})
+    return sorted(events, key=lambda e: (e["frame"], e["type"]))
+
+
 def describe(
     tracks: np.ndarray,
     events: list[dict] | None = None,
@@ -386,11 +408,10 @@ def describe(
         out.append(t)
 
     table = tracks_from_mot(tracks) if len(tracks) else {}
-    if table:
-        size = image_size or infer_image_size(tracks)
-        first, last = int(tracks[:, 0].min()), int(tracks[:, 0].max())
 
-    # enter / exit / merge / split
+    # enter / exit / merge / split (without a tracker's events: entries and exits of the tracks)
+    if events is None and table:
+        events = events_from_tracks(tracks, image_size, p)
     if events is not None:
         for ev in events:
             kind, f, ids = ev["type"], int(ev["frame"]), [int(i) for i in ev["tracks"]]
@@ -410,17 +431,6 @@ def describe(
                     trip.object = f"group {ev['group']}"
                 add(trip)
             # other event types are not in the grammar: nothing is said about them
-    else:
-        for tid, t in table.items():
-            if t.frames[0] > first:
-                side = border_side(t.first_box, size, p)
-                add(Triplet(subj(tid), "appears" if side == "inside" else "enters", side, None,
-                            (int(t.frames[0]),) * 2, [tid]))
-            if t.frames[-1] < last:
-                side = border_side(t.last_box, size, p)
-                add(Triplet(subj(tid), "vanishes" if side == "inside" else "exits", side, None,
-                            (int(t.frames[-1]),) * 2, [tid]))
-
     # motion of each track
     vel = {tid: _velocity(t, p) for tid, t in table.items()}
     for tid, t in table.items():

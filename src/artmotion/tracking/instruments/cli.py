@@ -14,16 +14,6 @@ from artmotion.errors import InputError, check_range
 tool_app = typer.Typer(help="Surgical instruments: learn a head detector from annotated frames, track, score.",
                        no_args_is_help=True)
 
-_TORCH = "the tool commands need PyTorch: pip install 'artmotion[tools]' (or make install)"
-
-
-def _need_torch() -> None:
-    import importlib.util
-
-    if importlib.util.find_spec("torch") is None:
-        raise InputError(_TORCH)
-
-
 def _numbered_frames(source: str):
     """``(sequence, [(frame number, image path or None)])``: an image folder's frames are numbered
     by their file names' numbers (as in tools.csv), a video's from 1."""
@@ -55,7 +45,9 @@ def train(
     check_range("--epochs", epochs, 1, 1000, integer=True)
     check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     check_seed(seed)
-    _need_torch()
+    from artmotion.tracking.instruments.detector import ToolDetector, need_torch
+
+    need_torch()
     heads = read_tools_csv(tools_csv)
     seq, numbers = _numbered_frames(frames)
     if numbers is None:
@@ -66,7 +58,6 @@ def train(
     if not used:
         raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
     imgs = [read_image(by_number[n]) for n in used]
-    from artmotion.tracking.instruments.detector import ToolDetector
 
     def progress(epoch: int, total: int, loss: float) -> None:
         if sys.stderr.isatty():
@@ -91,26 +82,16 @@ def track(
 
     if threshold is not None:
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
-    _need_torch()
     from artmotion.tracking.instruments.detector import ToolDetector
-    from artmotion.tracking.instruments.track import ToolTracker
+    from artmotion.tracking.instruments.track import track_sequence
 
     det = ToolDetector.load(model)
     if threshold is not None:
         det.threshold = threshold
     seq, numbers = _numbered_frames(source)
-    if progress is None:
-        progress = sys.stderr.isatty()
-    tracker = ToolTracker(det)
-    pred = {}
     t0 = time.perf_counter()
-    frames = seq.frames()
-    if progress:
-        from tqdm import tqdm
-
-        frames = tqdm(frames, total=len(seq), unit="frame", leave=False)
-    for i, img in frames:
-        pred[numbers[i - 1] if numbers else i] = tracker.update(img)
+    pred = {numbers[i - 1] if numbers else i: rows
+            for i, rows in track_sequence(seq, det, sys.stderr.isatty() if progress is None else progress)}
     seconds = time.perf_counter() - t0
     write_predictions(out, pred)
     heads = sum(len(r) for r in pred.values())

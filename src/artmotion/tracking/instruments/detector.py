@@ -21,9 +21,17 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range
 
-__all__ = ["ToolDetector"]
+__all__ = ["ToolDetector", "need_torch"]
 
 _FORMAT = "artmotion-tool-detector-1"
+
+
+def need_torch() -> None:
+    """An :class:`InputError` saying how to install PyTorch when it is missing (the ``tools`` extra)."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise InputError("the tool commands need PyTorch: pip install 'artmotion[tools]' (or make install)")
 
 
 class ToolDetector:
@@ -137,9 +145,11 @@ class ToolDetector:
         import torch
 
         from artmotion.io.files import existing_file
-        from artmotion.tracking.instruments import net
 
         p = existing_file(path)
+        need_torch()
+        from artmotion.tracking.instruments import net
+
         try:
             state = torch.load(p, map_location="cpu", weights_only=True)
         except Exception as exc:  # a truncated or foreign file: torch's own errors vary

@@ -32,7 +32,7 @@ from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
 from artmotion.tracking.pote import fuse
 
-__all__ = ["ToolTracker", "track_tools"]
+__all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]
 
 _LK = {"winSize": (15, 15), "maxLevel": 3, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
 
@@ -198,3 +198,21 @@ def track_tools(frames: Iterable[tuple[int, np.ndarray]], detector, **options) -
     tracker = ToolTracker(detector, **options)
     for no, img in frames:
         yield no, tracker.update(img)
+
+
+def track_sequence(seq, detector, progress: bool = False, **options) -> Iterator[tuple[int, np.ndarray]]:
+    """:func:`track_tools` over an opened :class:`~artmotion.tracking.sequence.Sequence` (1-based
+    frame numbers), with a progress bar when ``progress``."""
+    frames = seq.frames()
+    if progress:
+        from tqdm import tqdm
+
+        frames = tqdm(frames, total=len(seq), unit="frame", leave=False)
+    yield from track_tools(frames, detector, **options)
+
+
+def to_mot(pred: Iterable[tuple[int, np.ndarray]]) -> np.ndarray:
+    """MOTChallenge rows ``(n, 10)`` of tracked heads: ids from 1, a square of the head's size
+    around it, the score as confidence (for the tracks' sentences, report and index)."""
+    rows = [[f, r[0] + 1, r[1] - r[3] / 2, r[2] - r[3] / 2, r[3], r[3], r[5], -1, -1, -1] for f, R in pred for r in R]
+    return np.array(rows, dtype=float).reshape(-1, 10)

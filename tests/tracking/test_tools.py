@@ -39,7 +39,7 @@ def test_tracker_keeps_one_identity_and_follows_detections():
             return np.zeros((0, 5))
 
     frame = np.random.default_rng(1).integers(0, 255, (120, 160, 3), dtype=np.uint8)
-    tr = ToolTracker(NoDetector(), klt=False)
+    tr = ToolTracker(NoDetector(), klt=False, coast=3)
     ids, err = set(), []
     for k in range(30):
         x, y = 30 + 3 * k, 60 + math.sin(k / 5) * 10

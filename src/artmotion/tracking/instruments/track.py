@@ -57,11 +57,12 @@ class ToolTracker:
     ``detect_std``: the detector's position error (px); ``accel``: the heads' acceleration noise
     (px / frame^2); ``gate``: largest distance (px) of a detection to a head's prediction;
     ``birth``: least score of a detection that starts a head; ``coast``/``max_miss``: frames a head
-    is reported / kept without a detection.
+    is reported / kept without a detection; ``merge``: two heads closer than this (px) are one (the
+    better established stays), and no head starts that close to another.
     """
 
     def __init__(self, detector, detect_std: float = 4.0, accel: float = 4.0, gate: float = 40.0,
-                 birth: float = 0.5, coast: int = 3, max_miss: int = 15, klt: bool = True):
+                 birth: float = 0.4, coast: int = 0, max_miss: int = 15, klt: bool = True, merge: float = 15.0):
         self.detector = detector
         self.detect_std = detect_std
         self.accel = accel
@@ -70,6 +71,7 @@ class ToolTracker:
         self.coast = coast
         self.max_miss = max_miss
         self.klt = klt
+        self.merge = merge
         self.heads: list[_Head] = []
         self._next_id = 0
         self._prev: np.ndarray | None = None
@@ -150,7 +152,6 @@ class ToolTracker:
                 if C[i, j] <= self.gate:
                     assigned[i] = j
                     used.add(j)
-        rows = []
         keep = []
         for i, (h, p) in enumerate(zip(self.heads, pri)):
             det = None
@@ -179,11 +180,18 @@ class ToolTracker:
             h.history.append(h.x[:2].copy())
             if h.miss <= self.max_miss:
                 keep.append(h)
-                if h.miss <= self.coast and h.hits >= 2:
-                    rows.append([h.id, h.x[0], h.x[1], h.size, h.angle, h.score])
-        self.heads = keep
+        # one instrument, one head: of two heads on the same spot the better established stays
+        keep.sort(key=lambda h: (-h.hits, h.id))
+        self.heads = []
+        for h in keep:
+            if all(math.hypot(*(h.x[:2] - o.x[:2])) > self.merge for o in self.heads):
+                self.heads.append(h)
+        rows = [[h.id, h.x[0], h.x[1], h.size, h.angle, h.score] for h in sorted(self.heads, key=lambda h: h.id)
+                if h.miss <= self.coast and h.hits >= 2]
         for j, d in enumerate(D):
-            if j not in used and d[4] >= self.birth:
+            # a detection no head explains starts one, unless it lies on a head (a second response)
+            if j not in used and d[4] >= self.birth and all(math.hypot(*(d[:2] - h.x[:2])) > self.merge
+                                                             for h in self.heads):
                 P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0])
                 self.heads.append(_Head(self._next_id, np.array([d[0], d[1], 0.0, 0.0]), P, float(d[2]), float(d[3]),
                                         float(d[4]), history=[np.array(d[:2])]))

@@ -14,9 +14,11 @@ from artmotion.errors import InputError, check_range
 tool_app = typer.Typer(help="Surgical instruments: learn a head detector from annotated frames, track, score.",
                        no_args_is_help=True)
 
+
 def _numbered_frames(source: str):
-    """``(sequence, [(frame number, image path or None)])``: an image folder's frames are numbered
-    by their file names' numbers (as in tools.csv), a video's from 1."""
+    """``(sequence, frame numbers)``: an image folder's frames are numbered by their file names'
+    numbers (as in tools.csv; by position when those are missing or repeat); a video's are None
+    (its frames count from 1)."""
     from artmotion.tracking.sequence import _frame_number, open_sequence
 
     seq = open_sequence(source)

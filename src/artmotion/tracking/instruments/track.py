@@ -58,11 +58,13 @@ class ToolTracker:
     (px / frame^2); ``gate``: largest distance (px) of a detection to a head's prediction;
     ``birth``: least score of a detection that starts a head; ``coast``/``max_miss``: frames a head
     is reported / kept without a detection; ``merge``: two heads closer than this (px) are one (the
-    better established stays), and no head starts that close to another.
+    better established stays), and no head starts that close to another; ``klt``/``camera``: the KLT
+    expert and the camera's motion (off only to measure what they bring).
     """
 
     def __init__(self, detector, detect_std: float = 4.0, accel: float = 4.0, gate: float = 40.0,
-                 birth: float = 0.4, coast: int = 0, max_miss: int = 15, klt: bool = True, merge: float = 15.0):
+                 birth: float = 0.4, coast: int = 0, max_miss: int = 15, klt: bool = True, merge: float = 15.0,
+                 camera: bool = True):
         self.detector = detector
         self.detect_std = detect_std
         self.accel = accel
@@ -72,6 +74,7 @@ class ToolTracker:
         self.max_miss = max_miss
         self.klt = klt
         self.merge = merge
+        self.camera = camera
         self.heads: list[_Head] = []
         self._next_id = 0
         self._prev: np.ndarray | None = None
@@ -79,7 +82,7 @@ class ToolTracker:
 
     # -- experts
     def _camera(self, grey: np.ndarray) -> np.ndarray | None:
-        if self._prev is None:
+        if self._prev is None or not self.camera:
             return None
         boxes = np.array([[h.x[0] - h.size, h.x[1] - h.size, 2 * h.size, 2 * h.size] for h in self.heads]).reshape(-1, 4)
         A, self._bg = estimate_motion(self._prev, grey, exclude=boxes, points=self._bg)

@@ -94,7 +94,8 @@ def test_train_track_eval_commands(lap_subset, run_cli, tmp_path):
     assert code == 0, err
     run = json.loads((tmp_path / "run" / "run.json").read_text())
     assert run["detections"] == "tool model" and (tmp_path / "run" / "report.html").is_file()
-    assert "video" not in run["files"] and all(t["id"] >= 1 for t in run["track_summary"])
+    assert run["files"]["video"] == "annotated.mp4" and (tmp_path / "run" / "annotated.mp4").stat().st_size > 0
+    assert all(t["id"] >= 1 for t in run["track_summary"])
     assert all(s["subject"] == "tool" for s in run["sentences"])
     # a model that is not one
     bad = tmp_path / "bad.pt"

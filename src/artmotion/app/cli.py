@@ -81,7 +81,7 @@ def run_cmd(
                                               help="Pose model (artmotion pose train): adds opens/closes sentences."),
     tool_model: Optional[Path] = typer.Option(None, "--tool-model",
                                               help="Tool model (artmotion tool train): track surgical instruments "
-                                                   "instead of people (no annotated video)."),
+                                                   "instead of people."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys

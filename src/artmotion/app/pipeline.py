@@ -197,7 +197,7 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     kwargs: dict = {**detection, "progress": progress}
     tools = kwargs.pop("tools", None)
     if tools is not None:
-        return _run_tools_into(out, seq, source, fingerprint, tools, object_class, progress, gt)
+        return _run_tools_into(out, seq, source, fingerprint, tools, object_class, progress, video)
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
         # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and
@@ -253,19 +253,22 @@ def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, eve
 
 
 def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_class: str, progress: bool,
-                    gt) -> tuple[dict, np.ndarray]:
+                    video: bool) -> tuple[dict, np.ndarray]:
     """:func:`_run_into` for surgical instruments: the tool tracker's heads as tracks (a square of
-    the head's size), entries and exits from the tracks, no annotated video."""
+    the head's size), entries and exits from the tracks."""
     from artmotion.language.describe import events_from_tracks
     from artmotion.tracking.instruments.track import to_mot, track_sequence
+    from artmotion.tracking.video import write_annotated
 
     t0 = time.perf_counter()
     tracks = to_mot(list(track_sequence(seq, tools, progress)))
     fps = len(seq) / max(time.perf_counter() - t0, 1e-9)
     events = events_from_tracks(tracks, (seq.width, seq.height))
+    if video:
+        write_annotated(out / "annotated.mp4", seq.frames(), tracks, seq.fps, (seq.width, seq.height), events=events)
     subject = "tool" if object_class == "person" else object_class
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=subject)
-    manifest = _write_run(out, seq, source, fingerprint, tracks, events, sentences, None, "tool model", fps, False)
+    manifest = _write_run(out, seq, source, fingerprint, tracks, events, sentences, None, "tool model", fps, video)
     return manifest, tracks
 
 

@@ -165,9 +165,12 @@ def run_pipeline(
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run) as dst:
-        detection = {"det": det, "detector": detector, "detect_every": detect_every, "tools": tools}
-        manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress, video,
-                                     pose, gt)
+        if tools is not None:
+            manifest, tracks = _run_tools_into(dst, seq, source, fingerprint, tools, object_class, progress, video)
+        else:
+            detection = {"det": det, "detector": detector, "detect_every": detect_every}
+            manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress,
+                                         video, pose, gt)
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
@@ -195,9 +198,6 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     from artmotion.tracking import evaluate, track
 
     kwargs: dict = {**detection, "progress": progress}
-    tools = kwargs.pop("tools", None)
-    if tools is not None:
-        return _run_tools_into(out, seq, source, fingerprint, tools, object_class, progress, video)
     if object_class != "person":
         # The defaults were chosen on people (docs/tracking.md); an object whose motion they were
         # not chosen on (a tool's box grows and shrinks fast) gets data-independent settings and

@@ -259,12 +259,6 @@ class PrismaticModel(PointModel):
         self.direction = d
         return self
 
-    @property
-    def params(self) -> tuple:
-        """``(origin, direction)`` as six floats (for scalar filter code)."""
-        assert self.origin is not None and self.direction is not None  # fitted
-        return (*self.origin.tolist(), *self.direction.tolist())
-
     def motion(self, X):
         return ((np.asarray(X) - self.origin) @ self.direction)[:, None]
 
@@ -331,12 +325,6 @@ class RevoluteModel(PointModel):
         self.centre, self.axis, self.radius, self.u = centre, n, float(r), _unit(u)
         self._v = _cross3(self.axis, self.u)
         return self
-
-    @property
-    def params(self) -> tuple:
-        """``(centre, radius, u, v)`` as ten floats (for scalar filter code)."""
-        assert self.centre is not None and self.u is not None  # fitted
-        return (*self.centre.tolist(), float(self.radius), *self.u.tolist(), *self.v.tolist())
 
     def motion(self, X):
         d = np.asarray(X) - self.centre

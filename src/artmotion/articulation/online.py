@@ -138,23 +138,14 @@ def curvature_occam(khat: float, sk: float, radius_range: tuple[float, float], m
         rho = np.union1d(rho, np.linspace(a0, a1, 129))
     a = (rho - khat) ** 2 / (2.0 * sk * sk)
     if m == 2:  # average over the direction: exp(-(rho^2 + k^2) / 2 s^2) I0(rho k / s^2)
-        g = np.exp(-a) * _i0e(rho * khat / (sk * sk))
+        from scipy.special import i0e
+
+        g = np.exp(-a) * i0e(rho * khat / (sk * sk))
     else:  # both signs
         g = np.exp(-a) + np.exp(-((rho + khat) ** 2) / (2.0 * sk * sk))
         g = 0.5 * g
     dens = g / (rho * math.log(hi / lo))  # the log-uniform prior density of |k|
     return float(math.log(max(float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(rho))), 1e-300)))
-
-
-def _i0e(x: np.ndarray) -> np.ndarray:
-    """``exp(-x) I0(x)`` for ``x >= 0`` (numpy's i0 overflows; asymptotic form beyond 30)."""
-    x = np.asarray(x, dtype=float)
-    out = np.empty_like(x)
-    small = x < 30.0
-    out[small] = np.exp(-x[small]) * np.i0(x[small])
-    xb = x[~small]
-    out[~small] = (1.0 + 1.0 / (8.0 * xb) + 9.0 / (128.0 * xb * xb)) / np.sqrt(2.0 * np.pi * xb)
-    return out
 
 
 class _ModelFilter:
@@ -292,11 +283,11 @@ class _ModelFilter:
         manifold and (when the filter runs, see :meth:`start`) along it."""
         m = self.model
         z0, z1, z2 = z
+        s: list[float] = []  # the motion variables in length units
         if m.name == "static":
             c0, c1, c2 = m.centre
-            return self._t(((z0 - c0) ** 2 + (z1 - c1) ** 2 + (z2 - c2) ** 2) / self.sigma**2, self.d, self._cd) \
-                - self.d * math.log(self.sigma), 0.0
-        if m.name == "prismatic":
+            e2 = (z0 - c0) ** 2 + (z1 - c1) ** 2 + (z2 - c2) ** 2
+        elif m.name == "prismatic":
             o, dvec = m.origin, m.direction
             y0, y1, y2 = z0 - o[0], z1 - o[1], z2 - o[2]
             q = y0 * dvec[0] + y1 * dvec[1] + y2 * dvec[2]
@@ -320,7 +311,7 @@ class _ModelFilter:
         geo = 0.0
         if self.d:
             geo = self._t(e2 / self.sigma**2, self.d, self._cd) - self.d * math.log(self.sigma)
-        if self.x is None:
+        if self.x is None or not s:
             return geo, 0.0
         return geo, sum(self._step_axis(j, sj, dt) for j, sj in enumerate(s))
 
@@ -689,8 +680,7 @@ class OnlineEstimator:
         for j, f in enumerate(self.filters):
             # the marginal likelihood of all samples so far under the new configuration and noise
             self._geo[j], self._along[j] = f.start(X, T, along=self._own_along(j))
-        # the leading model's residuals tell how much one sample is worth (the first time: the
-        # model that fits closest)
+        # what one sample is worth, from the residuals' correlation
         self.tau = self._autocorrelation()
         for j, f in enumerate(self.filters):
             if f.model.name == "revolute":
@@ -761,17 +751,17 @@ class OnlineEstimator:
                 decided_at -= 1
         X = self.X
         T = self.T
-        fits, noise = {}, {}
+        final = {}
         for g in self.filters:  # final configurations from all samples (on copies: updates may go on)
             if self._n > self._last_fit:
                 g = copy.copy(g)
                 g.model = copy.deepcopy(g.model)
                 self._fit_model(g, X, self._floor(X))
                 g.x = None  # the filter state belonged to the previous configuration
-            fits[g.model.name] = g
-            noise[g.model.name] = g.sigma
-        f = fits[self.names[best]]
-        fits = {k: g.model for k, g in fits.items()}
+            final[g.model.name] = g
+        f = final[self.names[best]]
+        fits = {k: g.model for k, g in final.items()}
+        noise = {k: g.sigma for k, g in final.items()}
         cfg = f.model.configuration(dim)
         q = f.model.motion(X)
         if f.model.name == "revolute":

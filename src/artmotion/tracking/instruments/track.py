@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
+from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
 from artmotion.tracking.pote import fuse
@@ -47,7 +47,6 @@ class _Head:
     score: float
     hits: int = 1
     miss: int = 0
-    history: list = field(default_factory=list)
 
 
 class ToolTracker:
@@ -110,8 +109,8 @@ class ToolTracker:
         if not self.klt or self._prev is None:
             return out
         H, W = grey.shape
-        for i, h in enumerate(self.heads):
-            x, y = h.history[-1][:2] if h.history else h.x[:2]
+        for i, h in enumerate(self.heads):  # before the prediction: the head where it was last frame
+            x, y = h.x[:2]
             r = int(max(8, 0.5 * h.size))
             x0, y0, x1, y1 = int(max(0, x - r)), int(max(0, y - r)), int(min(W, x + r)), int(min(H, y + r))
             if x1 - x0 < 6 or y1 - y0 < 6:
@@ -147,14 +146,11 @@ class ToolTracker:
         for h, g in zip(self.heads, klt):
             motion = Gaussian(h.x[:2].copy(), h.P[:2, :2].copy())
             pri.append(fuse([motion, g]) or motion)
-        used, assigned = set(), {}
+        assigned: dict[int, int] = {}
         if self.heads and len(D):
-            C = np.array([[np.hypot(*(d[:2] - p.mean)) for d in D] for p in pri])
-            r, c = linear_sum_assignment(C)
-            for i, j in zip(r, c):
-                if C[i, j] <= self.gate:
-                    assigned[i] = j
-                    used.add(j)
+            C = np.linalg.norm(np.array([p.mean for p in pri])[:, None, :] - D[None, :, :2], axis=2)
+            assigned = dict(assign(np.where(C <= self.gate, C, INF)))
+        used = set(assigned.values())
         keep = []
         for i, (h, p) in enumerate(zip(self.heads, pri)):
             det = None
@@ -180,7 +176,6 @@ class ToolTracker:
             else:
                 h.miss += 1
                 h.score *= 0.8
-            h.history.append(h.x[:2].copy())
             if h.miss <= self.max_miss:
                 keep.append(h)
         # one instrument, one head: of two heads on the same spot the better established stays
@@ -197,7 +192,7 @@ class ToolTracker:
                                                              for h in self.heads):
                 P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0])
                 self.heads.append(_Head(self._next_id, np.array([d[0], d[1], 0.0, 0.0]), P, float(d[2]), float(d[3]),
-                                        float(d[4]), history=[np.array(d[:2])]))
+                                        float(d[4])))
                 self._next_id += 1
         self._prev = grey
         return np.array(rows, dtype=float).reshape(-1, 6)

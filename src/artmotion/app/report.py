@@ -96,7 +96,7 @@ def _timeline_svg(manifest: dict, length: int) -> str:
 
 
 def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dict) -> Path:
-    """Render ``report.html`` for one run (``seq`` from :func:`artmotion.tracking.open_sequence`)."""
+    """Render ``report.html`` for one run (``seq`` from :func:`artmotion.io.sequence.open_sequence`)."""
     length = int(seq.length)
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())

@@ -4,6 +4,7 @@
 * :mod:`~artmotion.articulation.rigid` — factorisation ``W = M S`` and rigid-body classification (4.3.2);
 * :mod:`~artmotion.articulation.temporal` — Taylor models of any order (4.4), Table 4.1, Fig. 4.5;
 * :mod:`~artmotion.articulation.online` — Algorithm 1, online model selection (4.5);
+* :mod:`~artmotion.articulation.video` — joints from plain video (4.3.2 on image tracks);
 * :mod:`~artmotion.articulation.slam` — EKF SLAM and Articulated EKF SLAM, Algorithm 2 (4.6-4.7);
 * :mod:`~artmotion.articulation.trajectory` — trajectory files and ``articulation fit``.
 """
@@ -24,6 +25,7 @@ _WHERE = {
     "classify_points": "rigid",
     "classify_poses": "rigid",
     "factorize": "rigid",
+    "analyze_video": "video",
     "fit_trajectory": "trajectory",
     "read_trajectory": "trajectory",
 }

@@ -1,6 +1,6 @@
 """CLI commands of :mod:`artmotion.articulation` (registered on the root app by :func:`register`).
 
-``artmotion articulation fit TRAJ`` and ``artmotion slam simulate``.
+``artmotion articulation fit TRAJ``, ``artmotion articulation video VIDEO`` and ``artmotion slam simulate``.
 """
 
 from __future__ import annotations
@@ -75,6 +75,80 @@ def fit(
         typer.echo(f"  {k}: {_fmt(v)}")
     if out.get("prediction"):
         typer.echo(f"next sample predicted at {_fmt(out['prediction'][0])}")
+
+
+@articulation_app.command("video")
+def video(
+    source: Path = typer.Argument(..., help="A video file or a folder of frames."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for result.json and parts.png (tracks by part, axes)."),
+    focal: Optional[float] = typer.Option(None, "--focal", help="Focal length in pixels [default: a 60-degree field of view]."),
+    max_parts: int = typer.Option(3, "--max-parts", help="Most moving parts to look for."),
+    seed: int = typer.Option(0, "--seed", help="Random seed of the part search (RANSAC)."),
+):
+    """Find the parts that move in a video and name the joint of the one that moves most."""
+    import sys
+
+    from artmotion.articulation.video import analyze_video
+
+    if focal is not None:
+        check_range("--focal", focal, 0.0, 1e7, lo_open=True)
+    check_range("--max-parts", max_parts, 1, 20, integer=True)
+    check_seed(seed)
+    if not source.exists():
+        raise InputError("no such file", path=source)
+    if sys.stderr.isatty():
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      transient=True) as progress:
+            task = progress.add_task("tracking", total=None)
+            res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed,
+                                on_frame=lambda done, total: progress.update(task, completed=done, total=total))
+    else:
+        res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed)
+    d = res.to_dict()
+    if out is not None:
+        _write_video_outputs(out, source, res, d)
+    if as_json:
+        typer.echo(json.dumps(d, allow_nan=False))
+        return
+    typer.echo(f"{source}: {d['frames']} frames, camera {d['camera']}, noise {d['noise_px']:.2f} px")
+    typer.echo(f"model: {d['model']}  (confidence {d['confidence']:.2f})")
+    for k, p in enumerate(d["parts"], start=1):
+        rng = p.get("range") or {}
+        extent = (f", {rng['degrees']:.0f} degrees" if "degrees" in rng else
+                  f", {rng['pixels']:.0f} px" if "pixels" in rng else "")
+        typer.echo(f"  part {k}: {p['model']} ({p['confidence']:.2f}), {p['points']} points, frames "
+                   f"{p['frames'][0]}-{p['frames'][1]}{extent}")
+        ax = p.get("axis")
+        if ax:
+            where = "towards the camera" if ax.get("towards_camera") else "direction " + _fmt(ax["direction"])
+            typer.echo(f"    axis through {_fmt(ax['point'])} px, {where}")
+    if out is not None:
+        typer.echo(f"wrote {out}/result.json, {out}/parts.png")
+
+
+def _write_video_outputs(out: Path, source: Path, res, d: dict) -> None:
+    """result.json and parts.png (four frames: the tracks so far, by part, and each part's axis)."""
+    import numpy as np
+
+    from artmotion.articulation.video import draw_parts
+    from artmotion.io.atomic import atomic_dir, atomic_write
+    from artmotion.io.media import write_image
+    from artmotion.io.sequence import open_sequence
+
+    n = d["frames"]
+    keep = sorted({int(round(x)) for x in np.linspace(0, n - 1, 4)})
+    shots = {}
+    for num, img in open_sequence(source).frames():
+        if num - 1 in keep:
+            shots[num - 1] = draw_parts(img, res, frame=num - 1)
+    strip = np.hstack([shots[k] for k in keep if k in shots])
+    with atomic_dir(out) as tmp:
+        with atomic_write(tmp / "result.json") as fh:
+            json.dump(d, fh, indent=1, allow_nan=False)
+        write_image(tmp / "parts.png", strip)
 
 
 #: the EKF's covariance has (2 * landmarks + 3)^2 entries: 1000 landmarks take 32 MB

@@ -4,7 +4,8 @@ Real logs (Sturm et al. 2010) are a gripper's 3-D positions while a robot opens 
 the motion starts and stops smoothly, the gripper may hold still before the mechanism gives way,
 and the track deviates from the ideal joint by white sensor noise *and* by slow, correlated
 deviations (arm compliance, a handle that turns in the hand). :func:`synthetic_log` draws such logs,
-and the shapes on which model choice is known to fail:
+and the shapes on which model choice is known to fail. :func:`part_video` renders a textured part
+that turns or slides against a static background, for articulation from video.
 
 ==========================  ==========  =========================================================
 kind                        joint       what makes it hard
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["KINDS", "synthetic_log"]
+__all__ = ["KINDS", "part_video", "synthetic_log"]
 
 #: kind -> true joint
 KINDS = {
@@ -117,3 +118,51 @@ def synthetic_log(kind: str, seed: int | np.random.Generator = 0) -> tuple[np.nd
             P += (rng.uniform(0.003, 0.008) * np.clip(1.0 - s / h, 0.0, 1.0) ** 2)[:, None] * side
     P = P + _smooth_noise(n, slow, rng.uniform(4.0, 15.0), rng) + rng.normal(0.0, white, (n, 3))
     return P @ _frame(rng).T + rng.uniform(-1.0, 1.0, 3), KINDS[kind]
+
+
+def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int, int] = (320, 240),
+               amount: float | None = None, pivot: tuple[float, float] = (110.0, 120.0),
+               direction: tuple[float, float] = (1.0, 0.3), seed: int = 0, fps: float = 30.0):
+    """Write a video (MJPG ``.avi``) of a textured part against a static textured background:
+    ``revolute`` turns it about ``pivot`` (an axis towards the camera) by ``amount`` degrees
+    (default 60), ``prismatic`` slides it along ``direction`` by ``amount`` px (default 80),
+    ``static`` leaves it. The part rests for the first and last sixth of the frames."""
+    import cv2
+
+    from artmotion.io.atomic import atomic_path
+
+    if motion not in ("revolute", "prismatic", "static"):
+        raise ValueError(f"unknown motion {motion!r}")
+    rng = np.random.default_rng(seed)
+    w, h = size
+
+    def texture(hh: int, ww: int) -> np.ndarray:
+        t = cv2.GaussianBlur(rng.uniform(0, 255, (hh, ww)).astype(np.float32), (0, 0), 2.0)
+        t = 255.0 * (t - t.min()) / max(float(np.ptp(t)), 1e-6)
+        return cv2.cvtColor(t.astype(np.uint8), cv2.COLOR_GRAY2BGR)
+
+    back = texture(h, w)
+    part = texture(h, w)
+    mask = np.zeros((h, w), np.uint8)
+    px, py = pivot
+    cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
+    amount = (60.0 if motion == "revolute" else 80.0) if amount is None else amount
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    rest = frames // 6
+    with atomic_path(path) as tmp:
+        out = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
+        for f in range(frames):
+            q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
+            q = 0.5 - 0.5 * np.cos(np.pi * q)
+            if motion == "revolute":
+                M = cv2.getRotationMatrix2D((px, py), amount * q, 1.0)
+            else:
+                s = amount * q if motion == "prismatic" else 0.0
+                M = np.array([[1.0, 0.0, s * d[0]], [0.0, 1.0, s * d[1]]])
+            p = cv2.warpAffine(part, M, (w, h))
+            m = cv2.warpAffine(mask, M, (w, h)) > 127
+            img = back.copy()
+            img[m] = p[m]
+            out.write(img)
+        out.release()
+    return path

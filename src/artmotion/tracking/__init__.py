@@ -21,8 +21,8 @@ _WHERE = {
     "MultiObjectTracker": "mot",
     "PoTE": "pote",
     "fuse": "pote",
-    "Sequence": "sequence",
-    "open_sequence": "sequence",
+    "Sequence": "api",
+    "open_sequence": "api",
     "evaluate": "metrics",
 }
 __all__ = sorted(_WHERE)

@@ -11,12 +11,12 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range
 from artmotion.io.media import MAX_FPS, MIN_FPS
+from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import EXPERTS
 from artmotion.tracking.mot import MultiObjectTracker
-from artmotion.tracking.sequence import Sequence, open_sequence
 
-__all__ = ["DEFAULT_EXPERTS", "TrackResult", "run_tracker", "track"]
+__all__ = ["DEFAULT_EXPERTS", "Sequence", "TrackResult", "open_sequence", "run_tracker", "track"]
 
 DEFAULT_EXPERTS = ("det", "motion")
 

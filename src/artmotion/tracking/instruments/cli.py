@@ -19,7 +19,7 @@ def _numbered_frames(source: str):
     """``(sequence, frame numbers)``: an image folder's frames are numbered by their file names'
     numbers (as in tools.csv; by position when those are missing or repeat); a video's are None
     (its frames count from 1)."""
-    from artmotion.tracking.sequence import _frame_number, open_sequence
+    from artmotion.io.sequence import _frame_number, open_sequence
 
     seq = open_sequence(source)
     if seq.images is None:

@@ -207,7 +207,7 @@ def track_tools(frames: Iterable[tuple[int, np.ndarray]], detector, **options) -
 
 
 def track_sequence(seq, detector, progress: bool = False, **options) -> Iterator[tuple[int, np.ndarray]]:
-    """:func:`track_tools` over an opened :class:`~artmotion.tracking.sequence.Sequence` (1-based
+    """:func:`track_tools` over an opened :class:`~artmotion.io.sequence.Sequence` (1-based
     frame numbers), with a progress bar when ``progress``."""
     frames = seq.frames()
     if progress:

@@ -1,0 +1,115 @@
+"""Articulation from plain video (``artmotion articulation video``): which part moves, and how.
+
+Stages, each a function of this package:
+
+1. :func:`~.tracks.point_tracks` — long KLT point tracks with forward-backward checks;
+2. :func:`~.segment.noise_level`, :func:`~.segment.camera_motion` — the tracks' own noise, and the
+   camera's motion taken out;
+3. :func:`~.segment.moving_tracks`, :func:`~.segment.rigid_parts` — tracks that belong to the
+   scene and later move, grouped into rigid parts (hands and arms enter moving and are left out);
+4. :func:`~.joint.classify_part` — each part's motion lifted to 3-D under weak perspective and
+   classified by the same online model choice as trajectories from logs.
+
+:func:`analyze_video` runs them all and returns the JSON answer of the command.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from artmotion.articulation.video.segment import Part
+from artmotion.articulation.video.tracks import PointTracks
+
+__all__ = ["VideoArticulation", "analyze_video", "analyze_tracks"]
+
+
+@dataclass
+class VideoArticulation:
+    """The answer for one video; :meth:`to_dict` is the command's JSON."""
+
+    model: str
+    confidence: float
+    camera: str
+    parts: list[dict]
+    tracks: PointTracks
+    found: list[Part] = field(default_factory=list)
+    noise: float = 0.0
+
+    def to_dict(self) -> dict:
+        parts = [{k: v for k, v in p.items() if k != "trajectory"} for p in self.parts]
+        return {"model": self.model, "confidence": self.confidence, "parts": parts, "camera": self.camera,
+                "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise}
+
+
+def analyze_tracks(tracks: PointTracks, focal: float | None = None, max_parts: int = 3, seed: int = 0) -> VideoArticulation:
+    """Stages 2-4 on point tracks (see the module doc). With no part that moves, the answer is
+    ``static`` with confidence 0.5: nothing was seen to move, which says little about a joint."""
+    from artmotion.articulation.video.joint import classify_part
+    from artmotion.articulation.video.segment import camera_motion, moving_tracks, noise_level, rigid_parts
+
+    sigma = noise_level(tracks)
+    moving, tracks = camera_motion(tracks, sigma)
+    cand = moving_tracks(tracks, sigma)
+    found = rigid_parts(tracks, cand, sigma, max_parts=max_parts, seed=seed)
+    parts = [classify_part(tracks, p, focal=focal) for p in found]
+    for d, p in zip(parts, found):
+        d["motion_px"] = p.motion
+        d["image_motion"] = p.kind
+    camera = "moving" if moving else "static"
+    if not parts:
+        return VideoArticulation("static", 0.5, camera, [], tracks, [], sigma)
+    return VideoArticulation(parts[0]["model"], parts[0]["confidence"], camera, parts, tracks, found, sigma)
+
+
+def analyze_video(source: str | os.PathLike, focal: float | None = None, max_parts: int = 3, seed: int = 0,
+                  on_frame: Callable[[int, int], None] | None = None) -> VideoArticulation:
+    """Open ``source`` (a video file or a folder of frames) and find its moving parts' joints.
+    ``on_frame(done, total)`` reports progress while tracking."""
+    from artmotion.articulation.video.tracks import point_tracks
+    from artmotion.io.sequence import open_sequence
+
+    seq = open_sequence(source)
+    total = len(seq)
+    frames = (img for _, img in seq.frames())
+    tracks = point_tracks(frames, seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
+    return analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
+
+
+def draw_parts(image: np.ndarray, result: VideoArticulation, frame: int | None = None) -> np.ndarray:
+    """``image`` with each part's tracks (up to ``frame``) in its own colour and its fitted axis or
+    line drawn, labelled with the model."""
+    import cv2
+
+    out = image.copy()
+    colours = [(60, 200, 60), (60, 60, 230), (230, 120, 40), (200, 60, 200), (40, 200, 220)]
+    xy = result.tracks.xy if frame is None else result.tracks.xy[: frame + 1]
+    for k, (part, d) in enumerate(zip(result.found, result.parts)):
+        c = colours[k % len(colours)]
+        for i in part.tracks:
+            q = xy[:, i]
+            q = q[~np.isnan(q[:, 0])]
+            if len(q) > 1:
+                cv2.polylines(out, [np.round(q).astype(np.int32).reshape(-1, 1, 2)], False, c, 1, cv2.LINE_AA)
+        ax = d.get("axis")
+        if ax:
+            p = np.asarray(ax["point"], float)
+            v = np.asarray(ax["direction"][:2], float)
+            if d["model"] == "revolute" and ax.get("towards_camera"):
+                cv2.circle(out, tuple(int(round(x)) for x in p), 8, c, 2, cv2.LINE_AA)
+            elif np.linalg.norm(v) > 1e-6 and np.all(np.abs(p) < 1e5):
+                v = v / np.linalg.norm(v) * 0.5 * math.hypot(*out.shape[:2][::-1])
+                a, b = (p - v).round().astype(int), (p + v).round().astype(int)
+                cv2.line(out, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), c, 2, cv2.LINE_AA)
+        q0 = xy[:, part.tracks].reshape(-1, 2)
+        q0 = q0[~np.isnan(q0[:, 0])]
+        if len(q0):
+            x, y = np.median(q0, axis=0).astype(int)
+            label = f"{k + 1}: {d['model']} {d['confidence']:.2f}"
+            cv2.putText(out, label, (int(x), int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
+            cv2.putText(out, label, (int(x), int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, c, 1, cv2.LINE_AA)
+    return out

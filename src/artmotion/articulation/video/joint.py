@@ -1,0 +1,148 @@
+"""The joint of a part seen on video: its image motion lifted to 3-D, classified as for logs.
+
+A part's image motion is one affine map per frame (:func:`~.segment.chain_affines`). Under weak
+perspective a rigid motion ``(R, T)`` of a (nearly) planar part maps its image by
+``x' = s B x + b``, where ``B`` is the top-left 2x2 block of ``R`` and ``s`` the change of scale
+(distance). ``B``'s larger singular value is 1, so ``s`` is the larger singular value of the linear
+part and ``R`` is ``B`` completed to a rotation (up to the mirror ambiguity of weak perspective,
+resolved by continuity from frame to frame). The reference is the frame where the part looks
+largest (least foreshortened), taken as fronto-parallel: then a lid turning about a hinge in the
+image plane lifts to points on circles whatever its true starting tilt, and a part turning about
+an axis towards the camera to circles in the image plane. Depth from the change of scale needs the
+focal length (``focal``, px; default: a 60-degree horizontal field of view).
+
+Points of the part, lifted to 3-D (in pixels at the reference distance), are classified by the
+same online model choice as trajectories from logs (:func:`~artmotion.articulation.online.estimate_online`).
+What cannot be recovered without depth: the side towards which a lid tilts (mirror ambiguity),
+and a hinge seen exactly edge-on, whose points move along image lines like a drawer's but shrink
+to its line (foreshortening; the lift tells the two apart only through that shrinking).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from artmotion.articulation.online import estimate_online
+from artmotion.articulation.video.segment import Part, _apply, _invert
+from artmotion.articulation.video.tracks import PointTracks
+
+__all__ = ["plane_rectifier", "lift_part", "classify_part"]
+
+
+def _complete(B: np.ndarray, prev: np.ndarray | None) -> np.ndarray:
+    """A rotation whose top-left block is ``B`` (singular values clipped to [0, 1]), the mirror
+    choice closer to ``prev``."""
+    U, S, Vt = np.linalg.svd(B)
+    B = U @ np.diag(np.clip(S, 0.0, 1.0)) @ Vt
+    r13 = math.sqrt(max(0.0, 1.0 - B[0, 0] ** 2 - B[0, 1] ** 2))
+    r23 = math.sqrt(max(0.0, 1.0 - B[1, 0] ** 2 - B[1, 1] ** 2))
+    best = None
+    for s1, s2 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        r1 = np.array([B[0, 0], B[0, 1], s1 * r13])
+        r2 = np.array([B[1, 0], B[1, 1], s2 * r23])
+        err = abs(r1 @ r2)
+        R = np.vstack([r1, r2, np.cross(r1, r2)])
+        key = (round(err, 6), 0.0 if prev is None else float(np.linalg.norm(R - prev)))
+        if best is None or key < best[0]:
+            best = (key, R)
+    assert best is not None
+    return best[1]
+
+
+def plane_rectifier(L: np.ndarray) -> np.ndarray | None:
+    """``K`` (det 1) with ``K^-1 L_t K`` a scaled rotation for every linear part ``L_t`` (2x2), or
+    ``None``. A part turning in its own plane about the plane's normal (pliers on a table seen from
+    above at a slant) maps by ``L_t = K R_t K^-1``: the ellipse ``S = K K^T`` (the image of a circle
+    in that plane) is invariant, ``L_t S L_t^T = S`` up to scale; solved linearly over all frames,
+    and accepted when it is unique (one null direction) and an ellipse (positive definite)."""
+    rows = []
+    for M in L:
+        M = M / math.sqrt(abs(np.linalg.det(M)) or 1.0)
+        a, b, c, d = M.ravel()
+        # entries (0,0), (0,1), (1,1) of M S M^T - S in the unknowns (S00, S01, S11)
+        rows.append([a * a - 1, 2 * a * b, b * b])
+        rows.append([a * c, a * d + b * c - 1, b * d])
+        rows.append([c * c, 2 * c * d, d * d - 1])
+    _, sv, Vt = np.linalg.svd(np.asarray(rows))
+    if sv[1] <= 0 or sv[2] > 0.1 * sv[1]:
+        return None
+    s00, s01, s11 = Vt[2] * np.sign(Vt[2][0] or 1.0)
+    S = np.array([[s00, s01], [s01, s11]])
+    if np.linalg.eigvalsh(S)[0] <= 0.05 * np.linalg.eigvalsh(S)[1]:
+        return None
+    K = np.linalg.cholesky(S)
+    return K / math.sqrt(np.linalg.det(K))
+
+
+def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
+    """Reference frame ``r``, frames used, and the part's points lifted to 3-D at each of them:
+    ``(r, frames, P)`` with ``P`` of shape ``(len(frames), n_points, 3)`` (px at the reference
+    distance; x right, y down, z away from the camera)."""
+    focal = focal or tracks.width / (2 * math.tan(math.radians(30)))
+    used = np.flatnonzero(part.segment >= 0)
+    A = part.A
+    dets = np.abs(np.linalg.det(A[used, :, :2]))
+    r = int(used[np.argmax(dets)])
+    # the part's points in the reference frame: each track's first position carried there
+    xy = tracks.xy[:, part.tracks]
+    first = (~np.isnan(xy[:, :, 0])).argmax(axis=0)
+    x0 = _apply(np.stack([_invert(a) for a in A[first]]), xy[first, np.arange(len(first))])
+    ref = _apply(A[r], x0)
+    centre = ref.mean(axis=0)
+    pp = np.array([tracks.width / 2.0, tracks.height / 2.0])
+    Ar_inv = _invert(A[r])
+    L = np.stack([A[f][:, :2] @ Ar_inv[:, :2] for f in used])  # linear parts, reference -> f
+    K = plane_rectifier(L)
+    Ki = np.eye(2) if K is None else np.linalg.inv(K)
+    p = np.hstack([(ref - centre) @ Ki.T, np.zeros((len(ref), 1))])
+    out = []
+    R_prev = None
+    for f, M in zip(used, L):
+        M = Ki @ M @ (np.eye(2) if K is None else K)
+        c = _apply(A[f], _apply(Ar_inv, centre))
+        s = float(np.linalg.svd(M, compute_uv=False)[0])
+        R = _complete(M / s, R_prev)
+        R_prev = R
+        C = np.array([*((c - pp) / s + pp), focal * (1.0 / s - 1.0)])
+        out.append(p @ R.T + C)
+    return r, used, np.asarray(out)
+
+
+def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
+                  radius_range: tuple[float, float] | None = None, **choice) -> dict:
+    """Joint of ``part`` relative to the static scene: the online model choice on the lifted track
+    of the part's point that moves furthest. ``radius_range`` (px) defaults to 2%-100% of the image
+    diagonal (a hinge's radius, as the logs' 5 cm-1 m)."""
+    diag = math.hypot(tracks.width, tracks.height)
+    radius_range = radius_range or (0.02 * diag, 1.0 * diag)
+    r, used, P = lift_part(tracks, part, focal)
+    span = np.linalg.norm(P - P[:1], axis=2).max(axis=0)
+    k = int(np.argmax(span))
+    X = P[:, k]
+    res = estimate_online(X, used / tracks.fps, radius_range=radius_range, **choice)
+    model = res.model or max(res.probabilities, key=lambda m: res.probabilities[m])
+    cfg = res.configuration
+    out = {"model": model, "confidence": float(res.probabilities.get(model, 0.0)),
+           "points": int(len(part.tracks)), "frames": [int(used[0]), int(used[-1])], "reference_frame": r}
+    motion = np.asarray(res.motion, dtype=float)
+    if model == "revolute" and "axis" in cfg:
+        axis = np.asarray(cfg["axis"], dtype=float)
+        c3 = np.asarray(cfg.get("centre", cfg.get("center", [np.nan] * 3)), dtype=float)
+        out["axis"] = {"point": [float(c3[0]), float(c3[1])], "direction": [float(v) for v in axis / np.linalg.norm(axis)],
+                       "towards_camera": bool(abs(axis[2]) / np.linalg.norm(axis) > math.cos(math.radians(30)))}
+        ang = motion[:, 0] if motion.size else np.zeros(1)
+        out["range"] = {"degrees": float(np.degrees(np.nanmax(ang) - np.nanmin(ang)))}
+    elif model == "prismatic" and "direction" in cfg:
+        d = np.asarray(cfg["direction"], dtype=float)
+        d = d / np.linalg.norm(d)
+        out["axis"] = {"point": [float(v) for v in np.asarray(cfg.get("origin", X[0]))[:2]],
+                       "direction": [float(v) for v in d]}
+        q = motion[:, 0] if motion.size else np.zeros(1)
+        out["range"] = {"pixels": float(np.nanmax(q) - np.nanmin(q))}
+    else:
+        out["axis"] = None
+        out["range"] = None
+    out["trajectory"] = X
+    return out

@@ -1,0 +1,83 @@
+"""Articulation from video (artmotion articulation video): synthetic parts, errors, outputs."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from artmotion.articulation.synthetic import part_video
+from artmotion.articulation.video import analyze_video
+from artmotion.articulation.video.joint import plane_rectifier
+
+
+def test_turning_part_is_revolute_about_its_pivot(tmp_path):
+    v = part_video(tmp_path / "turn.avi", "revolute", pivot=(110, 120))
+    res = analyze_video(v)
+    assert res.camera == "static"
+    assert res.model == "revolute", res.to_dict()
+    ax = res.parts[0]["axis"]
+    assert ax["towards_camera"]
+    assert np.hypot(ax["point"][0] - 110, ax["point"][1] - 120) < 12
+    assert 45 < res.parts[0]["range"]["degrees"] < 75
+
+
+def test_sliding_part_is_prismatic_along_its_direction(tmp_path):
+    v = part_video(tmp_path / "slide.avi", "prismatic", direction=(1.0, 0.3))
+    res = analyze_video(v)
+    assert res.model == "prismatic", res.to_dict()
+    d = np.asarray(res.parts[0]["axis"]["direction"])
+    cos = abs(d[:2] @ np.array([1.0, 0.3])) / (np.linalg.norm(d[:2]) * math.hypot(1.0, 0.3))
+    assert cos > math.cos(math.radians(15))
+    assert 60 < res.parts[0]["range"]["pixels"] < 100
+
+
+def test_video_without_motion_is_static_with_low_confidence(tmp_path):
+    res = analyze_video(part_video(tmp_path / "still.avi", "static"))
+    assert res.model == "static" and res.parts == [] and res.confidence <= 0.5
+
+
+def test_plane_rectifier_recovers_a_slanted_plane():
+    K = np.array([[1.0, 0.0], [0.4, 0.5]])
+    K /= math.sqrt(np.linalg.det(K))
+    L = [K @ np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]) @ np.linalg.inv(K)
+         for a in np.linspace(0.0, 0.8, 12)]
+    Kh = plane_rectifier(np.asarray(L))
+    assert Kh is not None
+    R = np.linalg.inv(Kh) @ L[-1] @ Kh
+    assert np.allclose(R @ R.T, np.eye(2), atol=1e-6)
+    # a hinge in the image plane (foreshortening along one axis) has no invariant ellipse
+    assert plane_rectifier(np.asarray([np.diag([1.0, c]) for c in np.linspace(1.0, 0.3, 10)])) is None
+
+
+def test_cli_json_and_outputs(tmp_path, run_cli):
+    v = part_video(tmp_path / "turn.avi", "revolute")
+    code, out, err = run_cli("articulation", "video", v, "--json", "--out", tmp_path / "res")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["model"] == "revolute" and d["camera"] == "static"
+    assert set(d["parts"][0]) >= {"model", "axis", "range", "points", "frames"}
+    assert json.loads((tmp_path / "res" / "result.json").read_text()) == d
+    assert (tmp_path / "res" / "parts.png").stat().st_size > 1000
+    code, out, err = run_cli("articulation", "video", v)
+    assert code == 0 and "model: revolute" in out
+
+
+@pytest.mark.parametrize("content", [b"", b"not a video at all", b"RIFF\x00\x00\x00\x00AVI LIST" + b"\x00" * 64])
+def test_cli_unreadable_video_is_one_line_error(tmp_path, run_cli, content):
+    bad = tmp_path / "bad.avi"
+    bad.write_bytes(content)
+    code, out, err = run_cli("articulation", "video", bad, "--out", tmp_path / "o")
+    assert code == 2 and out == ""
+    assert err.startswith("artmotion: error: ") and str(bad) in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_bad_options(tmp_path, run_cli):
+    v = tmp_path / "missing.avi"
+    code, _, err = run_cli("articulation", "video", v)
+    assert code == 2 and "no such file" in err
+    v = part_video(tmp_path / "s.avi", "static", frames=12)
+    for args in (("--focal", "0"), ("--focal", "nan"), ("--max-parts", "0"), ("--seed", "-1")):
+        code, _, err = run_cli("articulation", "video", v, *args)
+        assert code == 2 and err.startswith("artmotion: error: "), (args, err)

@@ -129,7 +129,7 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     motion = np.asarray(res.motion, dtype=float)
     if model == "revolute" and "axis" in cfg:
         axis = np.asarray(cfg["axis"], dtype=float)
-        c3 = np.asarray(cfg.get("centre", cfg.get("center", [np.nan] * 3)), dtype=float)
+        c3 = np.asarray(cfg["centre"], dtype=float)
         out["axis"] = {"point": [float(c3[0]), float(c3[1])], "direction": [float(v) for v in axis / np.linalg.norm(axis)],
                        "towards_camera": bool(abs(axis[2]) / np.linalg.norm(axis) > math.cos(math.radians(30)))}
         ang = motion[:, 0] if motion.size else np.zeros(1)
@@ -137,7 +137,7 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     elif model == "prismatic" and "direction" in cfg:
         d = np.asarray(cfg["direction"], dtype=float)
         d = d / np.linalg.norm(d)
-        out["axis"] = {"point": [float(v) for v in np.asarray(cfg.get("origin", X[0]))[:2]],
+        out["axis"] = {"point": [float(v) for v in np.asarray(cfg["origin"])[:2]],
                        "direction": [float(v) for v in d]}
         q = motion[:, 0] if motion.size else np.zeros(1)
         out["range"] = {"pixels": float(np.nanmax(q) - np.nanmin(q))}

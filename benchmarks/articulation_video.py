@@ -20,11 +20,10 @@ import time
 from pathlib import Path
 
 import cv2
-import numpy as np
 from _docs import replace_block
 
 from artmotion.articulation.synthetic import part_video
-from artmotion.articulation.video import analyze_tracks, draw_parts
+from artmotion.articulation.video import analyze_tracks, parts_strip, snapshot_frames
 from artmotion.articulation.video.tracks import point_tracks
 from artmotion.io.sequence import open_sequence
 
@@ -34,12 +33,14 @@ MIN_EIG = (1e-3, 3e-3, 1e-2)
 
 
 def frames(path):
-    return [img for _, img in open_sequence(path).frames()]
+    """The frames of ``path`` (all in memory: they are tracked once per setting) and its frame rate."""
+    seq = open_sequence(path)
+    return [img for _, img in seq.frames()], seq.fps
 
 
 def figure(path: Path, imgs, res) -> None:
-    keep = np.linspace(0, len(imgs) - 1, 4).round().astype(int)
-    strip = np.hstack([draw_parts(imgs[k], res, frame=int(k)) for k in keep])
+    res.snapshots = {k: imgs[k] for k in snapshot_frames(len(imgs), 4)}
+    strip = parts_strip(res)
     h, w = strip.shape[:2]
     cv2.imwrite(str(path), cv2.resize(strip, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
 
@@ -52,9 +53,9 @@ def main() -> None:
     rows, sens = [], []
     for name, truth in TRUTH.items():
         path = Path(args.rbo) / f"{name}.avi"
-        imgs = frames(path)
+        imgs, fps = frames(path)
         t0 = time.perf_counter()
-        tracks = point_tracks(iter(imgs), 30.0)
+        tracks = point_tracks(iter(imgs), fps)
         res = analyze_tracks(tracks)
         dt = time.perf_counter() - t0
         d = res.to_dict()
@@ -68,7 +69,7 @@ def main() -> None:
             figure(ROOT / "docs" / f"articulation_video_{name}.png", imgs, res)
         answers = []
         for me in MIN_EIG:
-            r = analyze_tracks(point_tracks(iter(imgs), 30.0, min_eig=me))
+            r = analyze_tracks(point_tracks(iter(imgs), fps, min_eig=me))
             answers.append(f"{r.model} ({r.confidence:.2f})" + ("" if r.model == truth else " ✗"))
         sens.append(f"| {name} | " + " | ".join(answers) + " |")
         print(sens[-1], flush=True)
@@ -77,8 +78,8 @@ def main() -> None:
         for motion in ("revolute", "prismatic", "static"):
             right = 0
             for seed in range(5):
-                res = analyze_tracks(point_tracks(iter(frames(part_video(Path(tmp) / f"{motion}{seed}.avi", motion,
-                                                                              seed=seed))), 30.0))
+                imgs, fps = frames(part_video(Path(tmp) / f"{motion}{seed}.avi", motion, seed=seed))
+                res = analyze_tracks(point_tracks(iter(imgs), fps))
                 right += res.model == motion
             syn.append(f"| {motion} | {right}/5 |")
             print(syn[-1], flush=True)

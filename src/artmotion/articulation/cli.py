@@ -95,21 +95,20 @@ def video(
         check_range("--focal", focal, 0.0, 1e7, lo_open=True)
     check_range("--max-parts", max_parts, 1, 20, integer=True)
     check_seed(seed)
-    if not source.exists():
-        raise InputError("no such file", path=source)
+    snapshots = 4 if out is not None else 0
     if sys.stderr.isatty():
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       transient=True) as progress:
             task = progress.add_task("tracking", total=None)
-            res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed,
+            res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
                                 on_frame=lambda done, total: progress.update(task, completed=done, total=total))
     else:
-        res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed)
+        res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots)
     d = res.to_dict()
     if out is not None:
-        _write_video_outputs(out, source, res, d)
+        _write_video_outputs(out, res, d)
     if as_json:
         typer.echo(json.dumps(d, allow_nan=False))
         return
@@ -129,26 +128,16 @@ def video(
         typer.echo(f"wrote {out}/result.json, {out}/parts.png")
 
 
-def _write_video_outputs(out: Path, source: Path, res, d: dict) -> None:
+def _write_video_outputs(out: Path, res, d: dict) -> None:
     """result.json and parts.png (four frames: the tracks so far, by part, and each part's axis)."""
-    import numpy as np
-
-    from artmotion.articulation.video import draw_parts
+    from artmotion.articulation.video import parts_strip
     from artmotion.io.atomic import atomic_dir, atomic_write
     from artmotion.io.media import write_image
-    from artmotion.io.sequence import open_sequence
 
-    n = d["frames"]
-    keep = sorted({int(round(x)) for x in np.linspace(0, n - 1, 4)})
-    shots = {}
-    for num, img in open_sequence(source).frames():
-        if num - 1 in keep:
-            shots[num - 1] = draw_parts(img, res, frame=num - 1)
-    strip = np.hstack([shots[k] for k in keep if k in shots])
     with atomic_dir(out) as tmp:
         with atomic_write(tmp / "result.json") as fh:
             json.dump(d, fh, indent=1, allow_nan=False)
-        write_image(tmp / "parts.png", strip)
+        write_image(tmp / "parts.png", parts_strip(res))
 
 
 #: the EKF's covariance has (2 * landmarks + 3)^2 entries: 1000 landmarks take 32 MB

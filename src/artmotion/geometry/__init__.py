@@ -1,4 +1,4 @@
-"""Shared geometry: axis-aligned boxes and 3-D rotations."""
+"""Shared geometry: axis-aligned boxes, 2-D affine maps (:mod:`~artmotion.geometry.affine`) and 3-D rotations."""
 
 from artmotion.geometry.boxes import (
     box_area,

@@ -97,14 +97,6 @@ def _displacement(A: np.ndarray, w: float, h: float) -> float:
     return float(np.max(np.linalg.norm(moved - corners, axis=1)))
 
 
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``b`` after ``a`` (2×3 affine maps)."""
-    out = np.empty((2, 3))
-    out[:, :2] = b[:, :2] @ a[:, :2]
-    out[:, 2] = b[:, :2] @ a[:, 2] + b[:, 2]
-    return out
-
-
 class CameraMotion:
     """Frame-to-frame camera motion, estimated only where the camera moves.
 

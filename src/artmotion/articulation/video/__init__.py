@@ -25,59 +25,89 @@ import numpy as np
 from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
 
-__all__ = ["VideoArticulation", "analyze_video", "analyze_tracks"]
+__all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
 
 @dataclass
 class VideoArticulation:
-    """The answer for one video; :meth:`to_dict` is the command's JSON."""
+    """The answer for one video; :meth:`to_dict` is the command's JSON. ``snapshots``: frames
+    (index -> BGR image) kept for :func:`parts_strip`."""
 
-    model: str
-    confidence: float
     camera: str
     parts: list[dict]
     tracks: PointTracks
     found: list[Part] = field(default_factory=list)
     noise: float = 0.0
+    snapshots: dict[int, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def model(self) -> str:
+        """The joint of the part that moves most; ``static`` when no part moves."""
+        return self.parts[0]["model"] if self.parts else "static"
+
+    @property
+    def confidence(self) -> float:
+        """Its probability; 0.5 when no part moves (nothing was seen to move, which says little
+        about a joint)."""
+        return self.parts[0]["confidence"] if self.parts else 0.5
 
     def to_dict(self) -> dict:
-        parts = [{k: v for k, v in p.items() if k != "trajectory"} for p in self.parts]
-        return {"model": self.model, "confidence": self.confidence, "parts": parts, "camera": self.camera,
+        return {"model": self.model, "confidence": self.confidence, "parts": self.parts, "camera": self.camera,
                 "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise}
 
 
 def analyze_tracks(tracks: PointTracks, focal: float | None = None, max_parts: int = 3, seed: int = 0) -> VideoArticulation:
-    """Stages 2-4 on point tracks (see the module doc). With no part that moves, the answer is
-    ``static`` with confidence 0.5: nothing was seen to move, which says little about a joint."""
+    """Stages 2-4 on point tracks (see the module doc)."""
     from artmotion.articulation.video.joint import classify_part
     from artmotion.articulation.video.segment import camera_motion, moving_tracks, noise_level, rigid_parts
 
     sigma = noise_level(tracks)
     moving, tracks = camera_motion(tracks, sigma)
-    cand = moving_tracks(tracks, sigma)
-    found = rigid_parts(tracks, cand, sigma, max_parts=max_parts, seed=seed)
+    found = rigid_parts(tracks, moving_tracks(tracks, sigma), sigma, max_parts=max_parts, seed=seed)
     parts = [classify_part(tracks, p, focal=focal) for p in found]
-    for d, p in zip(parts, found):
-        d["motion_px"] = p.motion
-        d["image_motion"] = p.kind
-    camera = "moving" if moving else "static"
-    if not parts:
-        return VideoArticulation("static", 0.5, camera, [], tracks, [], sigma)
-    return VideoArticulation(parts[0]["model"], parts[0]["confidence"], camera, parts, tracks, found, sigma)
+    return VideoArticulation("moving" if moving else "static", parts, tracks, found, sigma)
+
+
+def snapshot_frames(frames: int, count: int) -> list[int]:
+    """``count`` frame indices spread evenly over ``frames`` frames, first and last included."""
+    return sorted({int(round(x)) for x in np.linspace(0, frames - 1, count)}) if count and frames else []
 
 
 def analyze_video(source: str | os.PathLike, focal: float | None = None, max_parts: int = 3, seed: int = 0,
-                  on_frame: Callable[[int, int], None] | None = None) -> VideoArticulation:
+                  on_frame: Callable[[int, int], None] | None = None, snapshots: int = 0) -> VideoArticulation:
     """Open ``source`` (a video file or a folder of frames) and find its moving parts' joints.
-    ``on_frame(done, total)`` reports progress while tracking."""
+    ``on_frame(done, total)`` reports progress while tracking; ``snapshots`` frames spread over
+    the video (the last one read included) are kept in the result, for :func:`parts_strip`."""
     from artmotion.articulation.video.tracks import point_tracks
     from artmotion.io.sequence import open_sequence
 
     seq = open_sequence(source)
     total = len(seq)
-    frames = (img for _, img in seq.frames())
-    tracks = point_tracks(frames, seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
-    return analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
+    want = set(snapshot_frames(total, snapshots))
+    kept: dict[int, np.ndarray] = {}
+
+    def frames():
+        last = None
+        for num, img in seq.frames():
+            if num - 1 in want:
+                kept[num - 1] = img
+            last = (num - 1, img)
+            yield img
+        if want and last is not None:  # the last frame read is the last snapshot (a length may be an estimate)
+            kept.pop(total - 1, None)
+            kept[last[0]] = last[1]
+
+    tracks = point_tracks(frames(), seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
+    res = analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
+    res.snapshots = kept
+    return res
+
+
+def parts_strip(result: VideoArticulation) -> np.ndarray:
+    """The result's snapshots side by side, each with :func:`draw_parts` up to its frame."""
+    if not result.snapshots:
+        raise ValueError("no snapshots: analyze_video(..., snapshots=4) keeps them")
+    return np.hstack([draw_parts(img, result, frame=k) for k, img in sorted(result.snapshots.items())])
 
 
 def draw_parts(image: np.ndarray, result: VideoArticulation, frame: int | None = None) -> np.ndarray:

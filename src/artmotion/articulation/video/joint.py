@@ -25,8 +25,9 @@ import math
 import numpy as np
 
 from artmotion.articulation.online import estimate_online
-from artmotion.articulation.video.segment import Part, _apply, _invert
+from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
+from artmotion.geometry.affine import apply, invert
 
 __all__ = ["plane_rectifier", "lift_part", "classify_part"]
 
@@ -86,14 +87,11 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     dets = np.abs(np.linalg.det(A[used, :, :2]))
     r = int(used[np.argmax(dets)])
     # the part's points in the reference frame: each track's first position carried there
-    xy = tracks.xy[:, part.tracks]
-    first = (~np.isnan(xy[:, :, 0])).argmax(axis=0)
-    x0 = _apply(np.stack([_invert(a) for a in A[first]]), xy[first, np.arange(len(first))])
-    ref = _apply(A[r], x0)
+    ref = apply(A[r], apply(invert(A[tracks.first[part.tracks]]), tracks.start[part.tracks]))
     centre = ref.mean(axis=0)
     pp = np.array([tracks.width / 2.0, tracks.height / 2.0])
-    Ar_inv = _invert(A[r])
-    L = np.stack([A[f][:, :2] @ Ar_inv[:, :2] for f in used])  # linear parts, reference -> f
+    Ar_inv = invert(A[r])
+    L = A[used, :, :2] @ Ar_inv[:, :2]  # linear parts, reference -> f
     K = plane_rectifier(L)
     Ki = np.eye(2) if K is None else np.linalg.inv(K)
     p = np.hstack([(ref - centre) @ Ki.T, np.zeros((len(ref), 1))])
@@ -101,7 +99,7 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     R_prev = None
     for f, M in zip(used, L):
         M = Ki @ M @ (np.eye(2) if K is None else K)
-        c = _apply(A[f], _apply(Ar_inv, centre))
+        c = apply(A[f], apply(Ar_inv, centre))
         s = float(np.linalg.svd(M, compute_uv=False)[0])
         R = _complete(M / s, R_prev)
         R_prev = R
@@ -144,5 +142,6 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     else:
         out["axis"] = None
         out["range"] = None
-    out["trajectory"] = X
+    out["motion_px"] = part.motion
+    out["image_motion"] = part.kind
     return out

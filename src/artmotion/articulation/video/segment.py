@@ -21,26 +21,9 @@ import cv2
 import numpy as np
 
 from artmotion.articulation.video.tracks import PointTracks
+from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
 __all__ = ["Part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines", "part_motion"]
-
-_EYE = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-
-
-def _compose(D: np.ndarray, A: np.ndarray) -> np.ndarray:
-    """``D o A`` for 2x3 affines."""
-    return np.hstack([D[:, :2] @ A[:, :2], (D[:, :2] @ A[:, 2] + D[:, 2])[:, None]])
-
-
-def _invert(A: np.ndarray) -> np.ndarray:
-    Li = np.linalg.inv(A[:, :2])
-    return np.hstack([Li, (-Li @ A[:, 2])[:, None]])
-
-
-def _apply(A: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Apply 2x3 affines ``A`` (..., 2, 3) to points ``X`` (..., 2)."""
-    return np.einsum("...ij,...j->...i", A[..., :2], X) + A[..., 2]
-
 
 def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]:
     """Whether the camera moves, and the tracks in the first frame's coordinates.
@@ -61,16 +44,15 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
         still = (d < 1.0 + 4 * sigma).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
     if np.mean(still[seen.sum(axis=1) >= 8] >= 0.25) >= 0.9:
         return False, tracks
-    A = np.tile(_EYE, (F, 1, 1))
+    A = np.tile(IDENTITY, (F, 1, 1))
     for f in range(1, F):
         ok = ~np.isnan(xy[f - 1, :, 0]) & ~np.isnan(xy[f, :, 0])
         D = None
         if ok.sum() >= 8:
             D, _ = cv2.estimateAffinePartial2D(xy[f - 1, ok], xy[f, ok], method=cv2.RANSAC,
                                                ransacReprojThreshold=max(1.0, 3 * sigma))
-        A[f] = _compose(D if D is not None else _EYE, A[f - 1])
-    inv = np.stack([_invert(a) for a in A])
-    return True, PointTracks(_apply(inv[:, None], xy), tracks.fps, tracks.width, tracks.height)
+        A[f] = compose(D if D is not None else IDENTITY, A[f - 1])
+    return True, PointTracks(apply(invert(A)[:, None], xy), tracks.fps, tracks.width, tracks.height)
 
 
 def noise_level(tracks: PointTracks) -> float:
@@ -85,17 +67,11 @@ def noise_level(tracks: PointTracks) -> float:
 def moving_tracks(tracks: PointTracks, sigma: float, rest: float = 0.25, move: float = 12.0) -> np.ndarray:
     """Indices of tracks that rest for their first ``rest`` seconds (within ``3 sigma + 0.5 px`` of
     where they start) and later move more than ``move sigma`` (at least 4 px) from there."""
-    xy = tracks.xy
     first = tracks.first
-    N = xy.shape[1]
-    start = xy[first, np.arange(N)]
-    disp = np.linalg.norm(xy - start[None], axis=2)
-    with np.errstate(invalid="ignore"):
-        far = np.nanmax(disp, axis=0)
     k = max(3, int(round(rest * tracks.fps)))
-    cand = np.flatnonzero((far > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k))
-    keep = [i for i in cand
-            if tracks.visible[first[i]:first[i] + k, i].all() and disp[first[i]:first[i] + k, i].max() < 3 * sigma + 0.5]
+    cand = np.flatnonzero((tracks.excursion > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k))
+    keep = [i for i in cand if tracks.visible[first[i]:first[i] + k, i].all()
+            and np.linalg.norm(tracks.xy[first[i]:first[i] + k, i] - tracks.start[i], axis=1).max() < 3 * sigma + 0.5]
     return np.asarray(keep, dtype=int)
 
 
@@ -111,7 +87,7 @@ def _fit_step(P: np.ndarray, Q: np.ndarray, similarity: bool) -> tuple[np.ndarra
     else:
         sol, *_ = np.linalg.lstsq(np.hstack([P, np.ones((n, 1))]), Q, rcond=None)
         D = sol.T
-    return D, float(((_apply(D, P) - Q) ** 2).sum())
+    return D, float(((apply(D, P) - Q) ** 2).sum())
 
 
 def chain_affines(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -121,24 +97,25 @@ def chain_affines(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> 
     the chain is unbroken (-1: no fit, fewer than 3 of the tracks seen in both frames). Also the
     fits' residual sum of squares and number of coordinates fitted."""
     F = len(xy)
-    A = np.tile(_EYE, (F, 1, 1))
+    A = np.tile(IDENTITY, (F, 1, 1))
     segment = np.full(F, -1)
     seg = -1
     rss, count = 0.0, 0
     P = xy[:, idx]
-    for f in range(1, F):
-        ok = ~np.isnan(P[f - 1, :, 0]) & ~np.isnan(P[f, :, 0])
-        if ok.sum() >= 3:
-            D, r = _fit_step(P[f - 1, ok], P[f, ok], similarity)
-            rss += r
-            count += 2 * int(ok.sum())
-            if segment[f - 1] < 0:
-                seg += 1
-                segment[f - 1] = seg
-            segment[f] = seg
-            A[f] = _compose(D, A[f - 1])
-        else:
-            A[f] = A[f - 1]
+    seen = ~np.isnan(P[:, :, 0])
+    both = seen[:-1] & seen[1:]
+    fits = np.flatnonzero(both.sum(axis=1) >= 3) + 1  # frames with a fit from the one before
+    for n, f in enumerate(fits):
+        ok = both[f - 1]
+        D, r = _fit_step(P[f - 1, ok], P[f, ok], similarity)
+        rss += r
+        count += 2 * int(ok.sum())
+        if segment[f - 1] < 0:
+            seg += 1
+            segment[f - 1] = seg
+        segment[f] = seg
+        # the chain holds still until the next fit
+        A[f:fits[n + 1] if n + 1 < len(fits) else F] = compose(D, A[f - 1])
     return A, segment, rss, count
 
 
@@ -162,28 +139,21 @@ def _residuals(xy: np.ndarray, A: np.ndarray, segment: np.ndarray, cand: np.ndar
     """Largest distance (px) over its life between each candidate track and where the group's
     motion carries its first position in each unbroken run (NaN: never seen while the chain runs)."""
     P = xy[:, cand]
-    out = np.full(len(cand), np.nan)
     worst = np.full(len(cand), -1.0)
+    j = np.arange(len(cand))
     for s in np.unique(segment[segment >= 0]):
         fr = np.flatnonzero(segment == s)
         Ps = P[fr]
         vis = ~np.isnan(Ps[:, :, 0])
-        has = vis.any(axis=0)
-        if not has.any():
+        if not vis.any():
             continue
         k0 = vis.argmax(axis=0)
-        j = np.arange(len(cand))
         # each track's first position in the run, moved to the group's frame-0 coordinates
-        A0 = A[fr[k0]]
-        x0 = _apply(np.stack([_invert(a) for a in A0]), Ps[k0, j])
-        pred = _apply(A[fr][:, None], x0[None])
-        r = np.linalg.norm(pred - Ps, axis=2)
-        r = np.where(vis, r, -1.0)
-        m = np.where(vis.sum(axis=0) >= 2, r.max(axis=0), np.nan)
-        better = has & ~np.isnan(m)
-        worst[better] = np.maximum(worst[better], m[better])
-    out[worst >= 0] = worst[worst >= 0]
-    return out
+        x0 = apply(invert(A[fr[k0]]), Ps[k0, j])
+        r = np.where(vis, np.linalg.norm(apply(A[fr][:, None], x0[None]) - Ps, axis=2), -1.0)
+        twice = vis.sum(axis=0) >= 2
+        worst[twice] = np.maximum(worst[twice], r.max(axis=0)[twice])
+    return np.where(worst >= 0, worst, np.nan)
 
 
 @dataclass
@@ -196,7 +166,7 @@ class Part:
     A: np.ndarray
     segment: np.ndarray
     motion: float
-    kind: str = "affine"  # the image-motion model of ``A`` (see :func:`part_motion`)
+    kind: str  # the image-motion model of ``A``: "similarity" or "affine" (see :func:`part_motion`)
 
     @property
     def frames(self) -> tuple[int, int]:
@@ -209,16 +179,11 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
     """Rigid groups among the moving tracks ``cand``, largest motion first (see the module doc).
 
     A hypothesis is the chained affine motion of three nearby tracks over their common life; its
-    inliers are the candidates that stay within ``tol = 3 sigma + 1 px + 5%`` of their own motion
+    inliers are the candidates that stay within ``tol = 3 sigma + 1 px + 2%`` of their own motion
     of where it carries them. The best hypothesis (inliers weighted by how far they move) is
     refined twice over the whole video with all its inliers."""
     rng = np.random.default_rng(seed)
-    xy = tracks.xy
-    first = tracks.first
-    N = xy.shape[1]
-    start = xy[first, np.arange(N)]
-    with np.errstate(invalid="ignore"):
-        far = np.nanmax(np.linalg.norm(xy - start[None], axis=2), axis=0)
+    xy, start, far = tracks.xy, tracks.start, tracks.excursion
     parts: list[Part] = []
     left = np.asarray(cand, dtype=int)
     base_tol = 3 * sigma + 1.0
@@ -231,8 +196,8 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
             near = np.argsort(np.linalg.norm(pos - pos[i], axis=1))[1:20]
             j, k = rng.choice(near, 2, replace=False)
             s = left[[i, j, k]]
-            tri = start[s]
-            if abs(np.cross(np.append(tri[1] - tri[0], 0), np.append(tri[2] - tri[0], 0))[2]) < 50:
+            (u, v), (p, q) = start[s[1]] - start[s[0]], start[s[2]] - start[s[0]]
+            if abs(u * q - v * p) < 50:  # twice the triangle's area
                 continue
             A, seg, _, _ = chain_affines(xy, s)
             r = _residuals(xy, A, seg, left)

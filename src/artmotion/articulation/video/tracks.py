@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -27,19 +28,30 @@ class PointTracks:
     width: int
     height: int
 
-    @property
+    @cached_property
     def visible(self) -> np.ndarray:
         return ~np.isnan(self.xy[:, :, 0])
 
-    @property
+    @cached_property
     def first(self) -> np.ndarray:
         """First frame of every track."""
         return self.visible.argmax(axis=0)
 
-    @property
+    @cached_property
     def last(self) -> np.ndarray:
         """Last frame of every track."""
         return len(self.xy) - 1 - self.visible[::-1].argmax(axis=0)
+
+    @cached_property
+    def start(self) -> np.ndarray:
+        """Every track's first position, ``(tracks, 2)``."""
+        return self.xy[self.first, np.arange(self.xy.shape[1])]
+
+    @cached_property
+    def excursion(self) -> np.ndarray:
+        """How far (px) every track gets from its first position."""
+        with np.errstate(invalid="ignore"):
+            return np.nanmax(np.linalg.norm(self.xy - self.start[None], axis=2), axis=0)
 
     @property
     def frames(self) -> int:

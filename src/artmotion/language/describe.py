@@ -366,10 +366,15 @@ def events_from_tracks(tracks: np.ndarray, size: tuple[float, float] | None = No
     tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
     if not len(tracks):
         return []
+    return _track_events(tracks_from_mot(tracks), tracks, size, p)
+
+
+def _track_events(table: dict, tracks: np.ndarray, size, p: DescribeParams) -> list[dict]:
+    """:func:`events_from_tracks` on the tracks' ``table`` (:func:`tracks_from_mot` of ``tracks``)."""
     size = size or infer_image_size(tracks)
     first, last = int(tracks[:, 0].min()), int(tracks[:, 0].max())
     events = []
-    for tid, t in tracks_from_mot(tracks).items():
+    for tid, t in table.items():
         if t.frames[0] > first:
             events.append({"type": "enter", "frame": int(t.frames[0]), "tracks": [tid],
                            "side": border_side(t.first_box, size, p)})
@@ -411,7 +416,7 @@ def describe(
 
     # enter / exit / merge / split (without a tracker's events: entries and exits of the tracks)
     if events is None and table:
-        events = events_from_tracks(tracks, image_size, p)
+        events = _track_events(table, tracks, image_size, p)
     if events is not None:
         for ev in events:
             kind, f, ids = ev["type"], int(ev["frame"]), [int(i) for i in ev["tracks"]]

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.io.atomic import atomic_write
 from artmotion.io.files import read_text
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
@@ -68,12 +68,6 @@ def _header(fields: list[str], columns: tuple[str, ...], path: Path, lineno: int
     return names
 
 
-def _whole(name: str, value: float, hi: int, path: Path, lineno: int) -> int:
-    if value < 0 or value != int(value) or value > hi:
-        raise InputError(f"{name} must be a whole number in [0, {hi}], got {value:g}", path=path, line=lineno)
-    return int(value)
-
-
 def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, nothing: str) -> _Rows:
     """The checked rows of a CSV file with the header ``columns``: frame -> ``ident`` -> values."""
     text = read_text(path, what)
@@ -98,8 +92,8 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
             if not math.isfinite(v):
                 raise InputError(f"{name} is not finite: {field.strip()!r}", path=path, line=lineno)
             values[name] = v
-        frame = _whole("frame", values["frame"], MAX_FRAME, path, lineno)
-        key = _whole(ident, values[ident], MAX_ID, path, lineno)
+        frame = check_range("frame", values["frame"], 0, MAX_FRAME, integer=True, path=path, line=lineno)
+        key = check_range(ident, values[ident], 0, MAX_ID, integer=True, path=path, line=lineno)
         for name in ("x", "y"):
             if abs(values[name]) > MAX_COORD:
                 raise InputError(f"{name} out of range: coordinates must lie in [-{MAX_COORD:g}, {MAX_COORD:g}] px, "

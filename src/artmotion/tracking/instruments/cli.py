@@ -17,7 +17,7 @@ tool_app = typer.Typer(help="Surgical instruments: learn a head detector from an
 
 def _numbered_frames(source: str):
     """``(sequence, frame numbers)``: an image folder's frames are numbered by their file names'
-    numbers (as in tools.csv; by position when those are missing or repeat); a video's are None
+    numbers (as in tools.csv; by position when some are missing); a video's are None
     (its frames count from 1)."""
     from artmotion.io.sequence import _frame_number, open_sequence
 
@@ -25,8 +25,8 @@ def _numbered_frames(source: str):
     if seq.images is None:
         return seq, None
     numbers = [_frame_number(p) for p in seq.images]
-    if any(n is None for n in numbers) or len(set(numbers)) != len(numbers):
-        numbers = list(range(1, len(seq.images) + 1))
+    if any(n is None for n in numbers):  # (repeated numbers are already an error of open_sequence)
+        return seq, list(range(1, len(seq.images) + 1))
     return seq, numbers
 
 

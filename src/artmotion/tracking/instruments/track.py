@@ -109,6 +109,7 @@ class ToolTracker:
         if not self.klt or self._prev is None:
             return out
         H, W = grey.shape
+        seeds = []  # (head, corners in its window): every head's corners go through one LK call each way
         for i, h in enumerate(self.heads):  # before the prediction: the head where it was last frame
             x, y = h.x[:2]
             r = int(max(8, 0.5 * h.size))
@@ -116,20 +117,27 @@ class ToolTracker:
             if x1 - x0 < 6 or y1 - y0 < 6:
                 continue
             pts = cv2.goodFeaturesToTrack(self._prev[y0:y1, x0:x1], 20, 0.01, 3, blockSize=3)
-            if pts is None or len(pts) < 4:
-                continue
-            p0 = (pts + np.array([x0, y0], np.float32)).astype(np.float32)
-            p1, st, _ = cv2.calcOpticalFlowPyrLK(self._prev, grey, p0, None, **_LK)  # type: ignore[call-overload]
-            if p1 is None:
-                continue
-            pb, stb, _ = cv2.calcOpticalFlowPyrLK(grey, self._prev, p1, None, **_LK)  # type: ignore[call-overload]
-            ok = (st.ravel() == 1) & (stb.ravel() == 1) & (np.linalg.norm((pb - p0).reshape(-1, 2), axis=1) < 1.0)
+            if pts is not None and len(pts) >= 4:
+                seeds.append((i, (pts + np.array([x0, y0], np.float32)).astype(np.float32)))
+        if not seeds:
+            return out
+        p0 = np.concatenate([p for _, p in seeds])
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(self._prev, grey, p0, None, **_LK)  # type: ignore[call-overload]
+        if p1 is None:
+            return out
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(grey, self._prev, p1, None, **_LK)  # type: ignore[call-overload]
+        good = (st.ravel() == 1) & (stb.ravel() == 1) & (np.linalg.norm((pb - p0).reshape(-1, 2), axis=1) < 1.0)
+        moved = (p1 - p0).reshape(-1, 2)
+        start = 0
+        for i, pts in seeds:
+            ok, d = good[start:start + len(pts)], moved[start:start + len(pts)]
+            start += len(pts)
             if ok.sum() < 4:
                 continue
-            d = (p1 - p0).reshape(-1, 2)[ok]
+            d = d[ok]
             med = np.median(d, axis=0)
             spread = float(np.median(np.linalg.norm(d - med, axis=1))) + 1.0
-            out[i] = Gaussian(np.array([x, y]) + med, np.eye(2) * (spread**2 + 4.0))
+            out[i] = Gaussian(self.heads[i].x[:2] + med, np.eye(2) * (spread**2 + 4.0))
         return out
 
     # -- one frame

@@ -203,10 +203,10 @@ class _ModelFilter:
         """Motion variables ``(n, dof)`` in length units."""
         return q * self.model.radius if self.model.name == "revolute" else q
 
-    def start(self, X: np.ndarray, T: np.ndarray, skip: int = 2, along: bool = True) -> tuple[float, float]:
+    def start(self, X: np.ndarray, T: np.ndarray, along: bool = True) -> tuple[float, float]:
         """Log-likelihoods of all samples ``X`` (times ``T``) under the fitted configuration: off the
-        manifold, and along it with the motion integrated out by the filter (the first ``skip``
-        samples only position it; 0 when ``along`` is False). Leaves the filter at the last sample."""
+        manifold, and along it with the motion integrated out by the filter (the first two samples
+        only position it; 0 when ``along`` is False). Leaves the filter at the last sample."""
         m = self.model
         q = m.motion(X)
         E = X - m.predict(q)
@@ -220,7 +220,6 @@ class _ModelFilter:
         S = self._lengths(q)
         total = 0.0
         n, o = len(S), self.order
-        skip = min(skip, n)
         self.x = np.zeros((self.dof, o))
         self.P = np.zeros((self.dof, o, o))
         r2 = self.sigma_along**2
@@ -236,8 +235,7 @@ class _ModelFilter:
                 P[0, 1] = P[1, 0] = r2 / dt
                 P[1, 1] = 2.0 * r2 / dt**2
             self.x[j], self.P[j] = x, P
-            first = max(skip, 2 if o > 1 else 1)
-            for k in range(first, n):
+            for k in range(2, n):
                 total += self._step_axis(j, float(S[k, j]), float(T[k] - T[k - 1]))
         return geo, total
 
@@ -752,11 +750,12 @@ class OnlineEstimator:
         X = self.X
         T = self.T
         final = {}
+        floor = self._floor(X) if self._n > self._last_fit else None
         for g in self.filters:  # final configurations from all samples (on copies: updates may go on)
-            if self._n > self._last_fit:
+            if floor is not None:
                 g = copy.copy(g)
                 g.model = copy.deepcopy(g.model)
-                self._fit_model(g, X, self._floor(X))
+                self._fit_model(g, X, floor)
                 g.x = None  # the filter state belonged to the previous configuration
             final[g.model.name] = g
         f = final[self.names[best]]

@@ -211,3 +211,20 @@ def test_three_walking_together_form_one_group():
     assert len(together) == 1, sentences(out)
     assert together[0].tracks == [1, 2, 3]
     assert together[0].sentence == "Person 1, person 2 and person 3 walk together right from frame 1 to frame 60."
+
+
+def test_move_towards_each_other_and_apart():
+    """Two tools close in from either side, meet, and part; a third one walks past a still one."""
+    f = np.arange(1, 121)
+    meet = np.r_[np.linspace(0, 1, 60), np.linspace(1, 0, 60)]
+    rows = box_rows(1, f, 100 + 200 * meet, np.full(120, 200), w=50, h=50)
+    rows += box_rows(2, f, 500 - 200 * meet, np.full(120, 200), w=50, h=50)
+    rows += box_rows(3, f, np.full(120, 300), np.full(120, 400), w=50, h=50)  # still
+    rows += box_rows(4, f, np.linspace(0, 590, 120), np.full(120, 420), w=50, h=50)  # passes track 3
+    out = describe(np.array(rows, float), classes=("tool", {}), image_size=(W, H))
+    pairs = [(t.verb, t.frames) for t in out if t.verb in ("move towards each other", "move apart")]
+    assert [v for v, _ in pairs] == ["move towards each other", "move apart"]
+    (_, (a0, a1)), (_, (b0, b1)) = pairs
+    assert a0 < 20 and 50 <= a1 <= 62 and 58 <= b0 <= 70 and b1 > 100
+    assert "Tool 1 and tool 2 move towards each other" in next(t.sentence for t in out if t.verb == "move towards each other")
+    assert not any(set(t.tracks) & {3, 4} for t in out if t.verb in ("move towards each other", "move apart"))

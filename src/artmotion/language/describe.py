@@ -12,6 +12,9 @@ piece is told by its net displacement (``moves right``, ``moves left and upwards
 place``). Interactions come from pairs of tracks that stay near each other (centre distance below
 ``near`` box heights) with similar velocity for at least ``min_together`` frames: two tracks of the
 same class "walk together" (persons) or "move together"; otherwise one "interacts with" the other.
+Two moving tracks whose distance shrinks (grows) steadily for at least ``min_segment`` frames, by at least
+``min_move`` box heights, until they are (since they were) ``near`` each other, "move towards each
+other" ("move apart").
 The pose attribute "opens"/"closes" is read from the opening angle with hysteresis.
 """
 
@@ -247,6 +250,40 @@ def _together_runs(
     ]
 
 
+def _approach_runs(
+    a: Track, b: Track, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
+) -> list[tuple[int, int, str]]:
+    """Runs ``(first, last, verb)`` in which tracks ``a`` and ``b`` (velocities ``va``, ``vb``), both
+    moving, steadily close in on each other ("move towards each other") or draw apart ("move apart")."""
+    f0, f1 = max(a.frames[0], b.frames[0]), min(a.frames[-1], b.frames[-1])
+    n = int(f1 - f0 + 1)
+    if n < p.min_segment:
+        return []
+    ia = slice(int(f0 - a.frames[0]), int(f1 - a.frames[0]) + 1)
+    ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
+    h = 0.5 * (a.height + b.height)
+    dist = np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h
+    w = max(1, min(p.window, n // 2))
+    rate = np.zeros(n)
+    rate[w:n - w] = (dist[2 * w:] - dist[: n - 2 * w]) / (2 * w)
+    label = np.where(rate < -p.still, -1, np.where(rate > p.still, 1, 0))
+    both = np.minimum(np.hypot(va[0][ia], va[1][ia]), np.hypot(vb[0][ib], vb[1][ib])) / h >= p.still
+    label[~both] = 0  # one of them stands still: that one is not moving towards (away from) the other
+    runs = []
+    i = 0
+    while i < n:
+        j = i
+        while j + 1 < n and label[j + 1] == label[i]:
+            j += 1
+        if label[i] != 0 and j - i + 1 >= p.min_segment and abs(dist[j] - dist[i]) >= p.min_move:
+            if label[i] < 0 and dist[j] <= p.near:
+                runs.append((int(f0 + i), int(f0 + j), "move towards each other"))
+            elif label[i] > 0 and dist[i] <= p.near:
+                runs.append((int(f0 + i), int(f0 + j), "move apart"))
+        i = j + 1
+    return runs
+
+
 def _groups(walks: list[tuple[int, int, int, int]], overlap: float = 0.7):
     """Join pairwise "together" runs ``(a, b, first, last)`` sharing a track and overlapping in time
     (intersection over union >= ``overlap``) into groups; yield ``(members, (first, last))``."""
@@ -454,6 +491,8 @@ def describe(
                     walks.append((ta, tb, a, b))
                 else:
                     add(Triplet(subj(ta), "interacts with", None, subj(tb, False), (a, b), [ta, tb]))
+            for a, b, verb in _approach_runs(table[ta], table[tb], vel[ta], vel[tb], p):
+                add(Triplet(join_subjects([subj(ta), subj(tb, False)]), verb, None, None, (a, b), [ta, tb]))
     for members, (a, b) in _groups(walks):
         dx = np.mean([table[m].cx[b - table[m].frames[0]] - table[m].cx[a - table[m].frames[0]] for m in members])
         dy = np.mean([table[m].cy[b - table[m].frames[0]] - table[m].cy[a - table[m].frames[0]] for m in members])

@@ -28,6 +28,8 @@ VERBS = {
     "interacts with": "interaction",
     "walk together": "interaction",
     "move together": "interaction",
+    "move towards each other": "interaction",
+    "move apart": "interaction",
     "opens": "pose",
     "closes": "pose",
 }
@@ -103,6 +105,8 @@ def render(t: Triplet) -> str:
         middle = f"interacts with {t.object}"
     elif v in ("walk together", "move together"):
         middle = v + (f" {adj}" if adj else "")
+    elif v in ("move towards each other", "move apart"):
+        middle = v
     else:  # opens / closes
         middle = v
     sentence = f"{t.subject} {middle} {span}."

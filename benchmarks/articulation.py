@@ -1,4 +1,4 @@
-"""Speed of articulation estimation and SLAM (not a test; numbers go into docs/articulation.md).
+"""Speed of articulation estimation (not a test; numbers go into docs/articulation.md).
 
     .venv/bin/python benchmarks/articulation.py [--quick]
     .venv/bin/python benchmarks/articulation.py --report   # regenerate docs/articulation*.png and numbers
@@ -6,8 +6,7 @@
 * online update: microseconds per observation per model (Algorithm 1's filter step alone, and
   amortised over a whole track including the configuration re-fits: a 2000-sample synthetic arc
   and the 30 real logs of Sturm et al., min and median of repeats);
-* SLAM: steps per second with 42 landmarks (articulated and plain), and how a step's cost grows
-  from 50 to 1000 landmarks (plain EKF SLAM with every landmark in the state and in view).
+SLAM has its own benchmark, benchmarks/slam.py.
 """
 
 from __future__ import annotations
@@ -19,14 +18,12 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import json
-import math
 import sys
 import time
 
 import numpy as np
 
 from artmotion.articulation.online import OnlineEstimator
-from artmotion.articulation.slam import EKFSlam, make_world, run_slam, simulate
 
 
 def bench_online(n: int = 2000, seed: int = 0, repeats: int = 5) -> dict:
@@ -85,40 +82,8 @@ def bench_online_sturm(sturm: str = "../shared/data/articulation/sturm2010", rep
             "cpu_us_per_observation_per_model": {"min": min(cpu), "median": float(np.median(cpu))}}
 
 
-def bench_slam(steps: int = 600, seed: int = 1) -> dict:
-    world = make_world(seed=seed)
-    sim = simulate(world, steps, seed=seed)
-    res = {}
-    for name, art in (("articulated", True), ("ekf", False)):
-        t0 = time.perf_counter()
-        run_slam(sim, art)
-        res[name + "_steps_per_s"] = steps / (time.perf_counter() - t0)
-    return res
-
-
-def bench_scaling(sizes=(50, 100, 200, 500, 1000), steps: int = 30) -> dict:
-    """Cost of one EKF SLAM step (predict + batch update) with ``L`` landmarks all in the state and
-    ``min(L, 20)`` observed per step."""
-    out = {}
-    rng = np.random.default_rng(0)
-    for L in sizes:
-        f = EKFSlam(np.zeros(3), 0.1, (0.05, 0.005, 0.005, 0.05), 0.1, math.radians(1), L)
-        lm = rng.uniform(-20, 20, (L, 2))
-        for i in range(L):
-            d = lm[i]
-            f._add_static(i, np.array([np.hypot(*d), math.atan2(d[1], d[0])]))
-        ids = np.arange(min(L, 20))
-        z = np.column_stack([np.hypot(lm[ids, 0], lm[ids, 1]), np.arctan2(lm[ids, 1], lm[ids, 0])])
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            f.predict((1.0, 0.0))
-            f.update(ids, z)
-        out[L] = 1e3 * (time.perf_counter() - t0) / steps
-    return out
-
-
 # ---------------------------------------------------------------- the figures and tables of the docs
-def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/sturm2010", runs_slam: int = 20) -> dict:
+def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/sturm2010") -> dict:
     """Regenerate docs/articulation*.png and the numbers in docs/articulation.md."""
     import matplotlib
 
@@ -126,7 +91,6 @@ def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/stur
     import matplotlib.pyplot as plt
 
     from artmotion.articulation.online import estimate_online
-    from artmotion.articulation.slam import monte_carlo, plot_run
     from artmotion.articulation.temporal import compare_orders, configuration_monte_carlo, pendulum, plot_orders
     from artmotion.io import save_figure
 
@@ -166,14 +130,7 @@ def report(out_dir: str = "docs", sturm: str = "../shared/data/articulation/stur
     fig.supylabel("model probability (Eq. 4.16)")
     fig.tight_layout()
     save_figure(fig, os.path.join(out_dir, "articulation_online.png"), dpi=80)
-    # SLAM
-    res = monte_carlo(runs=runs_slam, steps=600, seed=0, keep_last=True)
-    world, sim, results = res.pop("_last")
-    plot_run(world, sim, results, os.path.join(out_dir, "articulation_slam.png"), frames=(10, 300, -1))
-    rep["slam"] = res
-    rep["bench"] = {"online": bench_online(2000), "online_sturm": bench_online_sturm(sturm),
-                    "slam_42": bench_slam(600),
-                    "scaling_ms": bench_scaling()}
+    rep["bench"] = {"online": bench_online(2000), "online_sturm": bench_online_sturm(sturm)}
     return rep
 
 
@@ -185,7 +142,5 @@ if __name__ == "__main__":
     report_ = {
         "online": bench_online(500 if quick else 2000),
         "online_sturm": bench_online_sturm(),
-        "slam_42": bench_slam(200 if quick else 600),
-        "slam_step_ms_by_landmarks": bench_scaling((50, 200) if quick else (50, 100, 200, 500, 1000)),
     }
     print(json.dumps(report_, indent=1))

@@ -104,9 +104,19 @@ def test_slam_simulate_json_and_plot(tmp_path, run_cli):
                              "--json", "--plot", png)
     assert code == 0, err
     res = json.loads(out)
-    for k in ("articulated", "ekf"):
-        assert res[k]["translation_error"] >= 0 and res[k]["rotation_error"] >= 0
+    for k in ("articulated", "ekf", "ekf_gated"):
+        t = res[k]["translation_error"]
+        assert 0 <= t["mean"] and res[k]["rotation_error"]["mean"] >= 0 and res[k]["nees"]["mean"] > 0
     assert png.exists() and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_slam_simulate_named_world(run_cli):
+    code, out, err = run_cli("slam", "simulate", "--world", "warehouse", "--steps", "120", "--runs", "2",
+                             "--backends", "articulated,ekf_gated")
+    assert code == 0, err
+    rows = [line.split("  ")[0] for line in out.splitlines()]
+    assert "warehouse" in out and "Articulated EKF SLAM" in rows and "EKF SLAM + chi2 gate" in rows
+    assert "EKF SLAM" not in rows  # not asked for
 
 
 def test_slam_bad_options(run_cli, tmp_path):
@@ -114,3 +124,8 @@ def test_slam_bad_options(run_cli, tmp_path):
     assert code == 2 and err.startswith("artmotion: error:")
     code, _, err = run_cli("slam", "simulate", "--plot", tmp_path / "x.jpg", "--runs", "1", "--steps", "5")
     assert code == 2
+    for args, word in ((("--world", "moon"), "--world"), (("--backends", "ekf,nope"), "--backends"),
+                       (("--runs", "-1"), "--runs"), (("--seed", "-2"), "--seed"), (("--steps", "1"), "--steps"),
+                       (("--landmarks", "10000000"), "--landmarks")):
+        code, out, err = run_cli("slam", "simulate", *args)
+        assert code == 2 and err.startswith("artmotion: error:") and word in err and "Traceback" not in err

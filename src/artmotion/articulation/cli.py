@@ -15,7 +15,7 @@ from artmotion.errors import InputError, check_range, check_seed
 
 articulation_app = typer.Typer(help="Discover how things move: articulation models from trajectories.",
                                no_args_is_help=True)
-slam_app = typer.Typer(help="EKF SLAM and Articulated EKF SLAM on a simulated world.", no_args_is_help=True)
+slam_app = typer.Typer(help="SLAM with articulated landmarks on simulated worlds.", no_args_is_help=True)
 
 
 def _fmt(v) -> str:
@@ -140,48 +140,71 @@ def _write_video_outputs(out: Path, res, d: dict) -> None:
         write_image(tmp / "parts.png", parts_strip(res))
 
 
-#: the EKF's covariance has (2 * landmarks + 3)^2 entries: 1000 landmarks take 32 MB
+#: the EKF's covariance has (4 * landmarks + 3)^2 entries at most: 1000 landmarks take 128 MB
 MAX_LANDMARKS = 1000
 
 
 @slam_app.command("simulate")
 def simulate(
-    landmarks: int = typer.Option(42, "--landmarks", help="Point landmarks in all."),
-    prismatic: int = typer.Option(1, "--prismatic", help="How many of them slide back and forth."),
-    revolute: int = typer.Option(1, "--revolute", help="How many of them turn on a circle."),
-    steps: int = typer.Option(600, "--steps", help="Time steps per run (0.1 s each)."),
+    world: str = typer.Option("table4.2", "--world",
+                              help="Named world: table4.2, corridor, warehouse or moving-only."),
+    backends: str = typer.Option("ekf,ekf_gated,articulated", "--backends",
+                                 help="Comma-separated back ends: ekf, ekf_gated, articulated, "
+                                      "articulated_delayed, graph (graph needs the slam extra)."),
+    landmarks: Optional[int] = typer.Option(None, "--landmarks",
+                                            help="Instead of --world: this many landmarks around the path."),
+    prismatic: int = typer.Option(1, "--prismatic", help="With --landmarks: how many slide back and forth."),
+    revolute: int = typer.Option(1, "--revolute", help="With --landmarks: how many turn on a circle."),
+    steps: Optional[int] = typer.Option(None, "--steps", help="Time steps per run (0.1 s each); default: the world's."),
     runs: int = typer.Option(20, "--runs", help="Monte Carlo runs."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG of the last run (Fig. 4.6/4.7)."),
 ):
-    """Compare Articulated EKF SLAM with EKF SLAM (Table 4.2)."""
-    from artmotion.articulation.slam import monte_carlo, plot_run
+    """Compare SLAM back ends on simulated worlds with moving landmarks (Table 4.2 and more)."""
+    from artmotion.articulation.slam.evaluate import BACKENDS, monte_carlo, plot_run
+    from artmotion.articulation.slam.world import WORLDS
 
-    check_range("--landmarks", landmarks, 1, MAX_LANDMARKS, integer=True)
-    check_range("--prismatic", prismatic, 0, landmarks, integer=True)
-    check_range("--revolute", revolute, 0, landmarks - prismatic, integer=True)
-    check_range("--steps", steps, 2, 100_000, integer=True)
+    if world not in WORLDS:
+        raise InputError(f"--world must be one of {', '.join(WORLDS)}, got {world!r}")
+    names = [b.strip() for b in backends.split(",") if b.strip()]
+    unknown = [b for b in names if b not in BACKENDS]
+    if not names or unknown:
+        raise InputError(f"--backends must list some of {', '.join(BACKENDS)}, got {backends!r}")
+    counts = None
+    if landmarks is not None:
+        check_range("--landmarks", landmarks, 1, MAX_LANDMARKS, integer=True)
+        check_range("--prismatic", prismatic, 0, landmarks, integer=True)
+        check_range("--revolute", revolute, 0, landmarks - prismatic, integer=True)
+        counts = (landmarks, prismatic, revolute)
+    if steps is not None:
+        check_range("--steps", steps, 2, 100_000, integer=True)
     check_range("--runs", runs, 1, 10_000, integer=True)
     check_seed(seed)
     if plot is not None and plot.suffix.lower() != ".png":
         raise InputError("--plot must name a .png file", path=plot)
-    res = monte_carlo(runs=runs, steps=steps, landmarks=landmarks, prismatic=prismatic, revolute=revolute,
-                      seed=seed, keep_last=plot is not None)
+    res = monte_carlo(runs=runs, steps=steps, world=world, seed=seed, backends=names, landmarks=counts,
+                      keep_last=plot is not None)
     last = res.pop("_last", None)
     if plot is not None and last is not None:
-        world, sim, results = last
-        plot_run(world, sim, results, plot, frames=(min(10, steps), min(100, steps), -1))
+        last_world, last_sim, last_results = last
+        plot_run(last_world, last_sim, last_results, plot)
     if as_json:
         typer.echo(json.dumps(res, allow_nan=False))
         return
-    typer.echo(f"{runs} runs x {steps} steps, {landmarks} landmarks ({prismatic} prismatic, {revolute} revolute)")
-    typer.echo(f"{'':22s}{'translation':>12s}{'rotation':>10s}{'abs. transl.':>14s}{'abs. rot.':>11s}")
-    for name, label in (("articulated", "Articulated EKF SLAM"), ("ekf", "EKF SLAM"), ("ekf_gated", "EKF SLAM + chi2 gate")):
+    what = (f"{landmarks} landmarks ({prismatic} prismatic, {revolute} revolute)" if counts
+            else f"world {world}: {WORLDS[world][0]}")
+    typer.echo(f"{runs} runs x {res['steps']} steps, {what}")
+    typer.echo(f"{'':40s}{'translation [95% interval]':>28s}{'rotation':>10s}{'abs. transl.':>14s}{'NEES':>8s}")
+    for name in names:
         r = res[name]
-        typer.echo(f"{label:22s}{r['translation_error']:12.3f}{r['rotation_error']:10.3f}"
-                   f"{r['absolute_translation_error']:14.3f}{r['absolute_rotation_error']:11.3f}")
-    typer.echo("errors of pose increments over all pose pairs (m, rad); absolute: mean pose error")
+        t = r["translation_error"]
+        ci = f"[{t['low']:6.3f}, {t['high']:6.3f}]" if t["low"] is not None else f"{'':16s}"
+        typer.echo(f"{BACKENDS[name][0]:40s}{t['mean']:10.3f} {ci}{'':4s}"
+                   f"{r['rotation_error']['mean']:10.3f}{r['absolute_translation_error']['mean']:14.3f}"
+                   f"{r['nees']['mean']:8.1f}")
+    typer.echo("errors of pose increments over all pose pairs (m, rad); absolute: mean pose error; "
+               "NEES of the robot pose (3 if consistent)")
     if plot is not None:
         typer.echo(f"wrote {plot}")
 

@@ -1,0 +1,130 @@
+"""What each landmark is: Algorithm 1 on its sightings, and the joint it decides (Sec. 4.7).
+
+Both SLAM back ends use this: a landmark's world positions (seen from the current robot estimate)
+go through :class:`~artmotion.articulation.online.OnlineEstimator`; once a model passes ``tau`` the
+landmark gets a :class:`Joint` — the fitted line or circle its motion variable ``q`` moves along
+(``q`` in metres along the line, or the world angle on the circle) — and the Taylor model of
+``(q, q')`` that carries it from step to step (Eq. 4.18).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from artmotion.articulation.online import OnlineEstimator
+from artmotion.filters import taylor_model
+
+__all__ = ["Joint", "Decision", "LandmarkModels"]
+
+
+@dataclass
+class Joint:
+    """A moving landmark's path: ``origin + q direction`` (prismatic) or ``centre + radius (cos q,
+    sin q)`` (revolute), in world coordinates."""
+
+    kind: str
+    origin: np.ndarray  # prismatic: a point of the line; revolute: the centre
+    direction: np.ndarray | None = None
+    radius: float = 0.0
+
+    def position(self, q: float) -> tuple[np.ndarray, np.ndarray]:
+        """``m(q)`` and ``dm/dq`` (the ``J_{m(t)}^{m_j}`` of Eq. 4.28)."""
+        if self.kind == "prismatic":
+            assert self.direction is not None
+            return self.origin + q * self.direction, self.direction
+        c, s = math.cos(q), math.sin(q)
+        return self.origin + self.radius * np.array([c, s]), self.radius * np.array([-s, c])
+
+    def transition(self, dt: float, accel_var: float) -> tuple[np.ndarray, np.ndarray]:
+        """Taylor model (order 2) of ``(q, q')``: ``F`` and ``Q`` for a step of ``dt``; the
+        acceleration noise is in m/s^2 along the path (radians scale by the radius)."""
+        scale = 1.0 if self.kind == "prismatic" else 1.0 / self.radius**2
+        return taylor_model(2, dt, accel_var * scale, 1)
+
+
+@dataclass
+class Decision:
+    """Algorithm 1's verdict on a landmark: ``kind``, and for a moving one its :class:`Joint`, the
+    motion variable at the current sighting with ``dq/dm`` (2,), its rate and the rate's variance."""
+
+    kind: str
+    joint: Joint | None = None
+    q: float = 0.0
+    dq_dm: np.ndarray | None = None
+    rate: float = 0.0
+    rate_var: float = 0.0
+
+
+class LandmarkModels:
+    """Algorithm 1 per landmark id: ``observe(i, m, Pm, k)`` feeds a world position (and its
+    covariance) seen at step ``k`` and returns a :class:`Decision` once a model passes ``threshold``.
+
+    ``min_radius``, ``max_radius``: the range of hinge radii a priori (log-uniform); re-fits every
+    10 % of samples (landmarks are seen for short stretches); ``point_noise`` is a floor on the
+    points' noise (the robot's own drift is not white noise)."""
+
+    def __init__(self, dt: float, threshold: float = 0.75, min_samples: int = 7, point_noise: float = 0.15,
+                 max_radius: float = 5.0, accel: float | None = 0.1, min_radius: float = 0.5):
+        self.dt = dt
+        self.threshold, self.min_samples = threshold, min_samples
+        self.point_noise, self.accel = point_noise, accel
+        self.radius_range = (min_radius, max_radius)
+        self.estimators: dict[int, OnlineEstimator] = {}
+        self.first_seen: dict[int, int] = {}
+        self.verdict: dict[int, str] = {}  # the model that passed tau (Algorithm 1 has decided)
+
+    def reset(self, i: int) -> None:
+        """Forget landmark ``i``'s sightings (it was decided wrongly, or started moving)."""
+        self.estimators.pop(i, None)
+        self.verdict.pop(i, None)
+
+    def observe(self, i: int, m: np.ndarray, Pm: np.ndarray, k: int) -> Decision | None:
+        """Sighting ``m`` (world position, covariance ``Pm``) of landmark ``i`` at step ``k``; the
+        :class:`Decision` once a model passes ``threshold`` (kept in :attr:`verdict`)."""
+        est = self.estimators.get(i)
+        if est is None:
+            est = OnlineEstimator(threshold=self.threshold, min_samples=self.min_samples, dim=2, noise=None,
+                                  noise_floor=self.point_noise,
+                                  radius_range=self.radius_range, refit_growth=1.1,
+                                  accel=self.accel)
+            self.estimators[i] = est
+            self.first_seen.setdefault(i, k)
+        # the point's noise: the observation noise carried to the world frame
+        est.noise = max(est.noise or 0.0, self.point_noise, math.sqrt(float(np.linalg.eigvalsh(Pm)[-1])))
+        est.update(m, float(k))  # time in steps: the Taylor models work per sample
+        probs = est.probabilities
+        if not probs:
+            return None
+        name = max(probs, key=probs.__getitem__)
+        if probs[name] <= self.threshold:
+            return None
+        self.verdict[i] = name
+        if name == "static":
+            return Decision("static")
+        assert est.filters is not None  # a moving model leads only once the filters were fit
+        f = est.filters[est.names.index(name)]
+        model = f.model
+        X = np.asarray(est.X)
+        model.fit(X)
+        # motion variable from the current sighting: q = G(m), dq/dm = J^+ (Eq. 4.28 inverted)
+        q = float(model.motion(np.array([[m[0], m[1], 0.0]]))[0, 0])
+        if name == "revolute":
+            qs = model.motion(X)[:, 0]
+            q = q + 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
+        rate, rate_var = f.velocity(X, np.asarray(est.T))
+        rate, rate_var = rate / self.dt, rate_var / self.dt**2  # per step -> per second
+        if name == "revolute":
+            # the circle lies in z = 0: the motion variable becomes the world angle of (point - centre)
+            e1, e2 = model.u, model.v
+            sgn = 1.0 if np.cross(e1, e2)[2] > 0 else -1.0
+            q, rate = math.atan2(e1[1], e1[0]) + sgn * q, sgn * rate
+            joint = Joint("revolute", model.centre[:2].copy(), radius=float(model.radius))
+        else:
+            d = model.direction[:2]
+            joint = Joint("prismatic", model.origin[:2].copy(), d / np.linalg.norm(d))
+            q = float((m - joint.origin) @ joint.direction)
+        _, Jq = joint.position(q)
+        return Decision(name, joint, q, Jq / (Jq @ Jq), rate, rate_var)

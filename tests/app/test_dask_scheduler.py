@@ -89,6 +89,8 @@ def test_batch_survives_a_killed_worker(tmp_path, cluster):
     def watch():
         while not stop.is_set():
             for manifest in out.glob("*/run.json"):
+                if manifest.parent.name.startswith("."):
+                    continue  # an attempt's temporary, renamed to the item's name when done
                 try:
                     seen.setdefault(manifest.parent.name, set()).add(manifest.stat().st_ino)
                 except FileNotFoundError:

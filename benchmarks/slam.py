@@ -46,6 +46,7 @@ COMPONENTS = {
     "joint_shift": (True, False, "a moving landmark's line/centre shift in the state (off: joint taken as exact)"),
     "undecided_var": (0.0, 0.01, "undecided landmarks drift as a random walk (0.01 m^2/step x P(moving))"),
     "gating": (True, False, "chi^2 gate on every sighting"),
+    "gate": (0.01, 0.001, "the gate's false-rejection probability (1 %; 0.1 % was the first default)"),
 }
 
 

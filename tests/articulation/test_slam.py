@@ -167,3 +167,14 @@ def test_a_rejected_decision_is_learnt_afresh():
     assert "static" in kinds[:100]
     assert any(j == 8 and kind == "static" for j, _, kind in f.reverted)
     assert kinds[-1] == "revolute"
+
+
+def test_gate_threshold_is_the_chi2_quantile():
+    from scipy.stats import chi2
+
+    from artmotion.articulation.slam.ekf import gate_threshold
+
+    for p in (0.001, 0.01, 0.05):
+        assert gate_threshold(p) == pytest.approx(chi2.ppf(1 - p, 2))
+    with pytest.raises(ValueError):
+        gate_threshold(0.0)

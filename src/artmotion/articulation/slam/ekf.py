@@ -22,7 +22,7 @@ import numpy as np
 
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
 
-__all__ = ["motion_model", "control_noise", "observe", "EKFSlam"]
+__all__ = ["motion_model", "control_noise", "observe", "gate_threshold", "EKFSlam"]
 
 
 def _wrap(a):
@@ -71,6 +71,14 @@ def observe(x: np.ndarray, m: np.ndarray):
     return z, Hx, Hm
 
 
+def gate_threshold(p: float) -> float:
+    """The chi^2 (2 degrees of freedom) value that a consistent sighting exceeds with probability
+    ``p``: ``-2 ln p`` (13.8 for 0.1 %)."""
+    if not 0.0 < p < 1.0:
+        raise ValueError("the gate's probability must lie in (0, 1)")
+    return -2.0 * math.log(p)
+
+
 # ---------------------------------------------------------------- the filter
 class _Block:
     """A landmark's slice of the state: ``(m_x, m_y)`` if static, ``(q, q')`` along a :class:`Joint`."""
@@ -110,7 +118,8 @@ class EKFSlam:
     circle, which starts with the robot's uncertainty (the joint was fitted to points seen from the
     robot's estimates) plus ``point_noise``; without it the joint is taken as exact.
 
-    ``gating`` (default: on when articulated) applies a chi^2 (2 dof, 0.1 %) validation gate; a
+    ``gating`` (default: on when articulated) applies a chi^2 (2 dof) validation gate that a
+    consistent sighting fails with probability ``gate`` (1 %: chosen by leave-one-world-out); a
     landmark whose sightings fail it three times in a row leaves the state until its next sighting
     (and if Algorithm 1 had decided its model, it learns it afresh).
     """
@@ -119,7 +128,7 @@ class EKFSlam:
                  articulated: bool = False, threshold: float = 0.75, min_samples: int = 7,
                  point_noise: float = 0.15, max_radius: float = 5.0, motion_var: float = 0.01,
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
-                 undecided_var: float = 0.0, joint_shift: bool = True):
+                 undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01):
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])
@@ -138,7 +147,7 @@ class EKFSlam:
         self.decided_at: dict[int, int] = {}
         self.motion_var = motion_var
         self.gating = articulated if gating is None else gating
-        self.gate = 13.8  # chi^2, 2 degrees of freedom, 0.1 %
+        self.gate = gate_threshold(gate)
         self.strikes: dict[int, int] = {}
         self.reverted: list = []
         self.k = 0

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from artmotion.articulation.slam.ekf import _wrap, control_noise, motion_model, observe
+from artmotion.articulation.slam.ekf import _wrap, control_noise, gate_threshold, motion_model, observe
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
 from artmotion.errors import InputError
 
@@ -135,7 +135,8 @@ class GraphSlam:
     ``pose_cov``, ``landmark_positions()``) plus ``trajectory()``, the smoothed path.
 
     ``articulated=False`` is plain graph SLAM: every landmark static. ``gating`` applies the chi^2
-    (2 dof, 0.1 %) validation gate of :meth:`_admit`. ``history`` re-attaches the sightings Algorithm 1
+    (2 dof) validation gate of :meth:`_admit`, failed by a consistent sighting with probability
+    ``gate`` (1 %: chosen by leave-one-world-out). ``history`` re-attaches the sightings Algorithm 1
     learnt a landmark from to motion variables at their own steps once it is decided moving (off by
     default: no better paths in the simulated worlds, and less consistent where only moving landmarks
     are in view, as those sightings also placed the joint).
@@ -149,7 +150,8 @@ class GraphSlam:
                  articulated: bool = True, threshold: float = 0.75, min_samples: int = 7,
                  point_noise: float = 0.15, max_radius: float = 5.0, motion_var: float = 0.01,
                  accel: float | None = 0.1, gating: bool = True, history: bool = False,
-                 joint_noise: float | None = None, relinearize_threshold: float = 0.1, relinearize_skip: int = 10):
+                 joint_noise: float | None = None, relinearize_threshold: float = 0.1, relinearize_skip: int = 10,
+                 gate: float = 0.01):
         gtsam = _gtsam()
         self._gtsam: Any = gtsam
         self.dt, self.alphas = dt, alphas
@@ -162,7 +164,7 @@ class GraphSlam:
         self.gating = gating
         self.history = history
         self.joint_noise = point_noise if joint_noise is None else joint_noise
-        self.gate = 13.8  # chi^2, 2 degrees of freedom, 0.1 %
+        self.gate = gate_threshold(gate)
         self.motion_var = motion_var
         self.models = LandmarkModels(dt, threshold, min_samples, point_noise, max_radius, accel)
         self.decided_at: dict[int, int] = {}  # step of each landmark's latest decision

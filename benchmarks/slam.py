@@ -94,25 +94,11 @@ def cost(sizes=(42, 100, 200, 500, 1000), steps: int = 660, timed: int = 100) ->
     for L in sizes:
         sim = simulate(make_world(L, 0, 0, seed=0), steps, cfg=SimConfig(max_seen=20), seed=1)
         for name in ORDER:
-            if name == "ekf_gated" or name == "articulated_delayed":
+            if name in ("ekf_gated", "articulated_delayed"):
                 continue  # same cost as ekf / articulated
-            stamps = []
-            f = _timed_run(sim, name, stamps)
-            out.setdefault(name, {})[L] = 1e3 * (stamps[-1] - stamps[-1 - timed]) / timed
-            del f
+            out.setdefault(name, {})[L] = 1e3 * float(run_slam(sim, name)["step_seconds"][-timed:].mean())
         print(f"cost at {L} landmarks: " + ", ".join(f"{n} {out[n][L]:.2f} ms" for n in out), flush=True)
     return out
-
-
-def _timed_run(sim, name, stamps):
-    from artmotion.articulation.slam.evaluate import make_backend
-
-    f = make_backend(name, sim)
-    for k, u in enumerate(sim["controls"]):
-        f.predict(u)
-        f.update(*sim["observations"][k])
-        stamps.append(time.perf_counter())
-    return f
 
 
 def _ci(d: dict, f: str = "{:.3f}") -> str:
@@ -144,7 +130,8 @@ def markdown(rep: dict) -> str:
         lines.append(f"| {c} | {COMPONENTS[c][2]} | " + " | ".join(
             f"{rows[w]['chosen']}: {rows[w]['held_out_error']:.3f}" for w in WORLDS) + " |")
     sizes = list(next(iter(rep["cost"].values())))
-    lines += ["", "Cost per step (ms; static landmarks around the path, nearest 20 in view observed, last 100 steps of a lap):", "",
+    lines += ["", "Cost per step (ms; static landmarks around the path, nearest 20 in view observed, "
+              "last 100 steps of a lap):", "",
               "| back end | " + " | ".join(str(s) for s in sizes) + " |", "|---" * (len(sizes) + 1) + "|"]
     for name, per in rep["cost"].items():
         lines.append(f"| {BACKENDS[name][0]} | " + " | ".join(f"{per[s]:.2f}" for s in sizes) + " |")

@@ -214,17 +214,36 @@ def infer_image_size(rows: np.ndarray) -> tuple[float, float]:
     return float(np.max(rows[:, 2] + rows[:, 4])), float(np.max(rows[:, 3] + rows[:, 5]))
 
 
-def _together_runs(
-    a: Track, b: Track, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
-) -> list[tuple[int, int, bool]]:
-    """Runs ``(first, last, moving)`` in which tracks ``a`` and ``b`` (velocities ``va``, ``vb``) are together."""
+@dataclass
+class _Pair:
+    """Two tracks over the frames they share: the first shared frame ``f0``, each track's slice of
+    them (``ia``, ``ib``), their mean box height ``h`` and centre distance ``dist`` in heights."""
+
+    f0: int
+    ia: slice
+    ib: slice
+    h: float
+    dist: np.ndarray
+
+
+def _pair(a: Track, b: Track) -> _Pair | None:
+    """:class:`_Pair` of tracks ``a`` and ``b``, or None if they share no frame."""
     f0, f1 = max(a.frames[0], b.frames[0]), min(a.frames[-1], b.frames[-1])
-    if f1 - f0 + 1 < p.min_together:
-        return []
+    if f1 < f0:
+        return None
     ia = slice(int(f0 - a.frames[0]), int(f1 - a.frames[0]) + 1)
     ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
     h = 0.5 * (a.height + b.height)
-    dist = np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h
+    return _Pair(int(f0), ia, ib, h, np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h)
+
+
+def _together_runs(
+    pair: _Pair, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
+) -> list[tuple[int, int, bool]]:
+    """Runs ``(first, last, moving)`` in which the tracks of ``pair`` (velocities ``va``, ``vb``) are together."""
+    if len(pair.dist) < p.min_together:
+        return []
+    f0, ia, ib, h, dist = pair.f0, pair.ia, pair.ib, pair.h, pair.dist
     vax, vay = va
     vbx, vby = vb
     dv = np.hypot(vax[ia] - vbx[ib], vay[ia] - vby[ib]) / h
@@ -251,18 +270,14 @@ def _together_runs(
 
 
 def _approach_runs(
-    a: Track, b: Track, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
+    pair: _Pair, va: tuple[np.ndarray, np.ndarray], vb: tuple[np.ndarray, np.ndarray], p: DescribeParams
 ) -> list[tuple[int, int, str]]:
-    """Runs ``(first, last, verb)`` in which tracks ``a`` and ``b`` (velocities ``va``, ``vb``), both
+    """Runs ``(first, last, verb)`` in which the tracks of ``pair`` (velocities ``va``, ``vb``), both
     moving, steadily close in on each other ("move towards each other") or draw apart ("move apart")."""
-    f0, f1 = max(a.frames[0], b.frames[0]), min(a.frames[-1], b.frames[-1])
-    n = int(f1 - f0 + 1)
+    n = len(pair.dist)
     if n < p.min_segment:
         return []
-    ia = slice(int(f0 - a.frames[0]), int(f1 - a.frames[0]) + 1)
-    ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
-    h = 0.5 * (a.height + b.height)
-    dist = np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h
+    f0, ia, ib, h, dist = pair.f0, pair.ia, pair.ib, pair.h, pair.dist
     w = max(1, min(p.window, n // 2))
     rate = np.zeros(n)
     rate[w:n - w] = (dist[2 * w:] - dist[: n - 2 * w]) / (2 * w)
@@ -486,12 +501,15 @@ def describe(
     walks: list[tuple[int, int, int, int]] = []
     for i, ta in enumerate(ids):
         for tb in ids[i + 1 :]:
-            for a, b, moving in _together_runs(table[ta], table[tb], vel[ta], vel[tb], p):
+            pair = _pair(table[ta], table[tb])
+            if pair is None:
+                continue
+            for a, b, moving in _together_runs(pair, vel[ta], vel[tb], p):
                 if cls_of(ta) == cls_of(tb) and moving:
                     walks.append((ta, tb, a, b))
                 else:
                     add(Triplet(subj(ta), "interacts with", None, subj(tb, False), (a, b), [ta, tb]))
-            for a, b, verb in _approach_runs(table[ta], table[tb], vel[ta], vel[tb], p):
+            for a, b, verb in _approach_runs(pair, vel[ta], vel[tb], p):
                 add(Triplet(join_subjects([subj(ta), subj(tb, False)]), verb, None, None, (a, b), [ta, tb]))
     for members, (a, b) in _groups(walks):
         dx = np.mean([table[m].cx[b - table[m].frames[0]] - table[m].cx[a - table[m].frames[0]] for m in members])

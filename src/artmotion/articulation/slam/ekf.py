@@ -22,7 +22,7 @@ import numpy as np
 
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
 
-__all__ = ["motion_model", "control_noise", "observe", "gate_threshold", "EKFSlam"]
+__all__ = ["motion_model", "control_noise", "observe", "inverse_observation", "gate_threshold", "EKFSlam"]
 
 
 def _wrap(a):
@@ -69,6 +69,17 @@ def observe(x: np.ndarray, m: np.ndarray):
     Hx = np.array([[-dx / sq, -dy / sq, 0.0], [dy / q, -dx / q, -1.0]])
     Hm = np.array([[dx / sq, dy / sq], [-dy / q, dx / q]])
     return z, Hx, Hm
+
+
+def inverse_observation(x: np.ndarray, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. 4.24 inverted: the world point ``m`` that sighting ``z = (range, bearing)`` from pose ``x``
+    sees, and its Jacobians w.r.t. the pose (2 x 3) and the sighting (2 x 2)."""
+    a = x[2] + z[1]
+    c, s = math.cos(a), math.sin(a)
+    m = np.array([x[0] + z[0] * c, x[1] + z[0] * s])
+    Gx = np.array([[1.0, 0.0, -z[0] * s], [0.0, 1.0, z[0] * c]])
+    Gz = np.array([[c, -z[0] * s], [s, z[0] * c]])
+    return m, Gx, Gz
 
 
 def gate_threshold(p: float) -> float:
@@ -204,7 +215,7 @@ class EKFSlam:
         """Algorithm 1 on sighting ``z`` of undecided landmark ``i``; once it decides a model other
         than the one ``i`` has in the state, ``i`` is re-initialised from ``z`` with it and True is
         returned."""
-        m, Gx, Gz = self._inverse(z)
+        m, Gx, Gz = inverse_observation(self.mu[:3], z)
         Pm = Gz @ self.R1 @ Gz.T
         d = self.models.observe(i, m, Pm, self.k)
         b = self.blocks.get(i)
@@ -278,16 +289,6 @@ class EKFSlam:
                 other.start -= d
         self.strikes.pop(i, None)
 
-    def _inverse(self, z):
-        """World point of observation ``z`` and its Jacobians w.r.t. robot and observation."""
-        x = self.mu[:3]
-        a = x[2] + z[1]
-        c, s = math.cos(a), math.sin(a)
-        m = np.array([x[0] + z[0] * c, x[1] + z[0] * s])
-        Gx = np.array([[1.0, 0.0, -z[0] * s], [0.0, 1.0, z[0] * c]])
-        Gz = np.array([[c, -z[0] * s], [s, z[0] * c]])
-        return m, Gx, Gz
-
     def _append(self, i, block: _Block, value, Gx_full, var_extra):
         """Add ``block`` at the end of the state: ``value`` (dim,), ``Gx_full`` (dim x 3) maps the
         robot's uncertainty, ``var_extra`` (dim x dim) is the block's own."""
@@ -309,7 +310,7 @@ class EKFSlam:
         self.decided_at[i] = self.k
 
     def _add_static(self, i, z):
-        m, Gx, Gz = self._inverse(z)
+        m, Gx, Gz = inverse_observation(self.mu[:3], z)
         self._append(i, _Block("static", self.n, 2), m, Gx, Gz @ self.R1 @ Gz.T)
 
     def _add_moving(self, i, d: Decision, Gx, Pm):

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from artmotion.articulation.slam.ekf import _wrap, control_noise, gate_threshold, motion_model, observe
+from artmotion.articulation.slam.ekf import _wrap, control_noise, gate_threshold, inverse_observation, motion_model, observe
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
 from artmotion.errors import InputError
 
@@ -155,7 +155,6 @@ class GraphSlam:
         gtsam = _gtsam()
         self._gtsam: Any = gtsam
         self.dt, self.alphas = dt, alphas
-        self.n_max = n_max  # (the graph grows as landmarks come)
         self.R1 = np.diag([range_std**2, bearing_std**2])
         # BearingRangeFactor2D's error is (bearing, range); the moving landmarks' is (range, bearing)
         self._br_noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([bearing_std, range_std]))
@@ -283,17 +282,10 @@ class GraphSlam:
         P = J @ np.linalg.inv(self.isam.marginalFactor(key, self._gtsam.EliminateQR).information()) @ J.T
         self._cov = 0.5 * (P + P.T)
 
-    def _inverse(self, z) -> tuple[np.ndarray, np.ndarray]:
-        """World point of sighting ``z`` from the current pose estimate and its Jacobian w.r.t. ``z``."""
-        x = self._pose
-        a = x[2] + z[1]
-        c, s = math.cos(a), math.sin(a)
-        return np.array([x[0] + z[0] * c, x[1] + z[0] * s]), np.array([[c, -z[0] * s], [s, z[0] * c]])
-
     def _learn(self, i: int, z: np.ndarray) -> bool:
         """Algorithm 1 on sighting ``z`` of undecided landmark ``i`` (as ``EKFSlam._learn``); True if
         the sighting is taken care of (the landmark entered the graph with it)."""
-        m, Gz = self._inverse(z)
+        m, _, Gz = inverse_observation(self._pose, z)
         d = self.models.observe(i, m, Gz @ self.R1 @ Gz.T, self.k)
         if d is None:
             return False
@@ -312,7 +304,7 @@ class GraphSlam:
         """Landmark ``i`` enters the graph as static (a fresh ``Point2``) with sighting ``z``."""
         t = _Track("static", self._key("l"))
         self.tracks[i] = t
-        self._values.insert(t.key, self._inverse(z)[0])
+        self._values.insert(t.key, inverse_observation(self._pose, z)[0])
         self._sighting(t, z)
 
     def _sighting(self, t: _Track, z: np.ndarray, k: int | None = None, init: np.ndarray | None = None) -> None:
@@ -406,14 +398,9 @@ class GraphSlam:
         if past:
             qs = [d.q]
             for k, zk in reversed(past):  # initial q from the sighting on the joint, unwrapped backwards
-                p = self.isam.calculateEstimatePose2(self._x(k))
-                a = p.theta() + zk[1]
-                m = np.array([p.x() + zk[0] * math.cos(a), p.y() + zk[0] * math.sin(a)])
-                if joint.kind == "prismatic":
-                    assert joint.direction is not None
-                    q = float((m - joint.origin) @ joint.direction)
-                else:
-                    q = math.atan2(m[1] - joint.origin[1], m[0] - joint.origin[0])
+                m = inverse_observation(_pose_array(self.isam.calculateEstimatePose2(self._x(k))), zk)[0]
+                q = joint.coordinate(m)
+                if joint.kind == "revolute":
                     q += 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
                 qs.append(q)
             for (k, zk), q in zip(past, reversed(qs[1:])):

@@ -38,6 +38,13 @@ class Joint:
         c, s = math.cos(q), math.sin(q)
         return self.origin + self.radius * np.array([c, s]), self.radius * np.array([-s, c])
 
+    def coordinate(self, m: np.ndarray) -> float:
+        """The motion variable ``q`` of the point of the path nearest to ``m`` (the angle in (-pi, pi])."""
+        if self.kind == "prismatic":
+            assert self.direction is not None
+            return float((m - self.origin) @ self.direction)
+        return math.atan2(m[1] - self.origin[1], m[0] - self.origin[0])
+
     def transition(self, dt: float, accel_var: float) -> tuple[np.ndarray, np.ndarray]:
         """Taylor model (order 2) of ``(q, q')``: ``F`` and ``Q`` for a step of ``dt``; the
         acceleration noise is in m/s^2 along the path (radians scale by the radius)."""
@@ -73,7 +80,6 @@ class LandmarkModels:
         self.point_noise, self.accel = point_noise, accel
         self.radius_range = (min_radius, max_radius)
         self.estimators: dict[int, OnlineEstimator] = {}
-        self.first_seen: dict[int, int] = {}
         self.verdict: dict[int, str] = {}  # the model that passed tau (Algorithm 1 has decided)
 
     def reset(self, i: int) -> None:
@@ -91,7 +97,6 @@ class LandmarkModels:
                                   radius_range=self.radius_range, refit_growth=1.1,
                                   accel=self.accel)
             self.estimators[i] = est
-            self.first_seen.setdefault(i, k)
         # the point's noise: the observation noise carried to the world frame
         est.noise = max(est.noise or 0.0, self.point_noise, math.sqrt(float(np.linalg.eigvalsh(Pm)[-1])))
         est.update(m, float(k))  # time in steps: the Taylor models work per sample
@@ -110,10 +115,9 @@ class LandmarkModels:
         X = np.asarray(est.X)
         model.fit(X)
         # motion variable from the current sighting: q = G(m), dq/dm = J^+ (Eq. 4.28 inverted)
-        q = float(model.motion(np.array([[m[0], m[1], 0.0]]))[0, 0])
-        if name == "revolute":
-            qs = model.motion(X)[:, 0]
-            q = q + 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
+        if name == "revolute":  # (a line's q is the joint's coordinate of m, below)
+            q = float(model.motion(np.array([[m[0], m[1], 0.0]]))[0, 0])
+            q = q + 2 * np.pi * round((model.motion(X)[-1, 0] - q) / (2 * np.pi))
         rate, rate_var = f.velocity(X, np.asarray(est.T))
         rate, rate_var = rate / self.dt, rate_var / self.dt**2  # per step -> per second
         if name == "revolute":
@@ -125,6 +129,6 @@ class LandmarkModels:
         else:
             d = model.direction[:2]
             joint = Joint("prismatic", model.origin[:2].copy(), d / np.linalg.norm(d))
-            q = float((m - joint.origin) @ joint.direction)
+            q = joint.coordinate(m)
         _, Jq = joint.position(q)
         return Decision(name, joint, q, Jq / (Jq @ Jq), rate, rate_var)

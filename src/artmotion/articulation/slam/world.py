@@ -52,9 +52,7 @@ def make_world(n_landmarks: int = 42, n_prismatic: int = 1, n_revolute: int = 1,
     if n_static < 0 or min(n_prismatic, n_revolute) < 0:
         raise InputError("landmark counts must be non-negative and add up to at most --landmarks")
     rng = np.random.default_rng(seed)
-    ang = rng.uniform(0, 2 * np.pi, n_static)
-    rad = radius + rng.choice([-1.0, 1.0], n_static) * rng.uniform(1.5, 4.0, n_static)
-    static = np.column_stack([rad * np.cos(ang), rad * np.sin(ang)])
+    static = _ring(rng, n_static, radius, 1.5, 4.0)
     moving = []
     for i in range(n_prismatic):
         a = 2 * np.pi * (i + 0.25) / max(n_prismatic, 1)

@@ -88,6 +88,7 @@ def _start_local_cluster(workers: int, processes: bool):
     """A local Dask cluster whose worker processes ignore the terminal's Ctrl-C (they preload
     :mod:`artmotion.app._dask_worker`; SIGINT is held back here while they start): only this
     process reacts to it, stops the batch and closes them."""
+    import logging
     import signal
 
     from dask.distributed import LocalCluster
@@ -98,7 +99,7 @@ def _start_local_cluster(workers: int, processes: bool):
     cluster = None
     try:
         cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
-                               dashboard_address=None, silence_logs=40,
+                               dashboard_address=None, silence_logs=logging.CRITICAL,
                                **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
     finally:
         if blocked:

@@ -32,7 +32,7 @@ def load_pred(path):
 
 
 def samples(data: Path, out: Path, frames=(40, 400, 900, 1500, 2300, 3100)):
-    boxes = {r.split(",")[0]: [int(v) for v in r.split(",")[1:]] for r in (data / "boxes.csv").read_text().splitlines()[1:]}
+    boxes = {r.split(",")[0]: [int(v) for v in r.split(",")[1:5]] for r in (data / "boxes.csv").read_text().splitlines()[1:]}
     tiles = []
     for f in frames:
         name = f"{f:06d}.jpg"

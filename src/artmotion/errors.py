@@ -78,3 +78,12 @@ def check_range(name: str, value, lo, hi, *, lo_open: bool = False, hi_open: boo
 def check_seed(seed, name: str = "--seed") -> int:
     """A random seed as NumPy and scikit-learn take it: a whole number in ``[0, 2**32 - 1]``."""
     return check_range(name, seed, 0, MAX_SEED, integer=True)
+
+
+def need_package(module: str, extra: str, what: str) -> None:
+    """An :class:`InputError` saying how to install an optional package (``module``, from the extra
+    ``extra``) when ``what`` needs it and it is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise InputError(f"{module} is not installed ({what} needs it): pip install 'artmotion[{extra}]' (or make install)")

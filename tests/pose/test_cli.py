@@ -40,7 +40,7 @@ def test_render_is_deterministic(tmp_path, run_cli):
         b = cv2.imread(str(tmp_path / "b" / "crops" / name))
         assert np.array_equal(a, b)
     assert len(list((tmp_path / "a" / "frames").glob("*.jpg"))) == 3
-    assert (tmp_path / "a" / "boxes.csv").read_text().startswith("image,x,y,w,h\n")
+    assert (tmp_path / "a" / "boxes.csv").read_text().startswith("image,x,y,w,h,frame_w,frame_h\n")
     run_cli("pose", "render", tmp_path / "c", "--poses", 3, "--seed", 8, "--no-frames")
     assert (tmp_path / "a" / "labels.csv").read_text() != (tmp_path / "c" / "labels.csv").read_text()
     # --dark: the same motion and scene as the normal-light render of that seed, in low light

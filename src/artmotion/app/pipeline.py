@@ -106,6 +106,8 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> d
     The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
     filtered in time (Eq. 3.6-3.7).
     """
+    from artmotion.pose.features import box_views
+
     crops: dict[int, list] = {}
     with closing(seq.frames()) as frames:
         for fno, frame in frames:
@@ -113,15 +115,17 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> d
                 x0, y0 = max(int(r[2]), 0), max(int(r[3]), 0)
                 x1, y1 = min(int(r[2] + r[4]), frame.shape[1]), min(int(r[3] + r[5]), frame.shape[0])
                 if x1 - x0 >= 4 and y1 - y0 >= 4:
-                    crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy()))
+                    view = box_views([(x0, y0, x1 - x0, y1 - y0)], (frame.shape[1], frame.shape[0]))[0]
+                    crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy(), view))
     out = {}
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
     for tid, items in crops.items():
         if len(items) < min_boxes:
             continue
-        mean, std = model.predict([c for _, c in items], return_std=True)
+        views = np.array([v for _, _, v in items]) if model.uses_views_ else None
+        mean, std = model.predict([c for _, c, _ in items], return_std=True, views=views)
         mean, _ = model.make_filter(dt).filter(mean, std)
-        out[tid] = (np.array([f for f, _ in items]), np.asarray(mean)[:, k])
+        out[tid] = (np.array([f for f, _, _ in items]), np.asarray(mean)[:, k])
     return out
 
 

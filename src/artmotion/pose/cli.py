@@ -9,11 +9,14 @@ import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
 from artmotion.errors import InputError, check_range, check_seed
+
+if TYPE_CHECKING:
+    import numpy as np
 
 pose_app = typer.Typer(
     name="pose",
@@ -24,6 +27,16 @@ pose_app = typer.Typer(
 )
 
 
+BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' (pose render writes boxes.csv): where each crop lies in its "
+              "frame; the cnn feature then learns the camera's perspective.")
+
+
+def _views(boxes: Path | None, paths) -> np.ndarray | None:
+    from artmotion.pose.data import read_views
+
+    return None if boxes is None else read_views(boxes, paths)
+
+
 @pose_app.command("render")
 def render_cmd(
     out: Path = typer.Argument(..., help="Output folder: crops/, labels.csv, frames/, boxes.csv."),
@@ -31,12 +44,15 @@ def render_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed; a seed always gives the same images."),
     dark: bool = typer.Option(False, "--dark", help="Render a low-light sequence."),
     frames: bool = typer.Option(True, "--frames/--no-frames", help="Also write whole frames and boxes.csv."),
+    motion: str = typer.Option("script", "--motion",
+                               help="script (pick and place) or cover (even coverage of the joint ranges: training sets)."),
+    scenes: int = typer.Option(1, "--scenes", help="Backgrounds (tissue and tint), each for an equal stretch of frames."),
 ):
-    """Render a pick-and-place sequence of a two-jaw grasper seen by an endoscope."""
+    """Render a sequence of a two-jaw grasper seen by an endoscope."""
     from artmotion.pose.render import write_dataset
 
     t = time.perf_counter()
-    write_dataset(out, poses, seed, dark, frames, progress=True)
+    write_dataset(out, poses, seed, dark, frames, progress=True, motion=motion, scenes=scenes)
     typer.echo(f"wrote {poses} crops and labels to {out} ({time.perf_counter() - t:.1f} s)")
 
 
@@ -45,10 +61,12 @@ def train_cmd(
     images: Path = typer.Argument(..., help="Folder of crops (any size)."),
     labels: Path = typer.Argument(..., help="CSV 'image,<angle name>,...' in degrees."),
     model: Path = typer.Option(..., "--model", help="Model file to write (.npz)."),
-    feature: str = typer.Option("hog", "--feature", help="hog or lbp."),
+    feature: str = typer.Option("hog", "--feature", help="hog, lbp or cnn (a small network trained here; needs PyTorch)."),
+    boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
     components: int = typer.Option(128, "--components", help="Principal components of the feature (0 = raw feature)."),
+    steps: int = typer.Option(3000, "--steps", help="cnn: training mini-batches of 64 crops."),
     seed: int = typer.Option(0, "--seed"),
 ):
     """Learn one Gaussian process per angle from labelled crops."""
@@ -57,12 +75,14 @@ def train_cmd(
 
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
+    check_range("--steps", steps, 1, 1_000_000, integer=True)
     check_seed(seed)
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
-                        seed=seed, progress=True)  # checks feature and method before any image is read
+                        seed=seed, progress=True, net_steps=steps)  # checks feature and method before any image is read
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    views = _views(boxes, paths)
     t = time.perf_counter()
-    reg.fit(imgs, Y, names)
+    reg.fit(imgs, Y, names, views=views)
     reg.save(model)
     gp = reg.gp_
     assert gp is not None  # fitted
@@ -78,6 +98,7 @@ def predict_cmd(
     images: Path = typer.Argument(..., help="Folder of crops; file-name order is one sequence."),
     out: Path = typer.Option(..., "--out", help="CSV 'image,<name>,<name>_std,...' to write."),
     smooth: bool = typer.Option(False, "--smooth", help="Kalman-filter the sequence (Eq. 3.6-3.7)."),
+    boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
 ):
     """Predict every angle (mean and standard deviation, degrees) of each crop."""
     from artmotion.pose.data import list_images, read_images, write_predictions
@@ -85,9 +106,12 @@ def predict_cmd(
 
     reg = PoseRegressor.load(model)
     paths = list_images(images)
+    views = _views(boxes, paths)
+    if views is None and reg.uses_views_:
+        raise InputError("this model was trained with --boxes: give the crops' boxes (--boxes)", path=model)
     imgs = read_images(paths, progress=True)
     t = time.perf_counter()
-    mean, std = reg.predict(imgs, return_std=True)
+    mean, std = reg.predict(imgs, return_std=True, views=views)
     if smooth:
         mean, std = reg.make_filter().filter(mean, std)
     dt = time.perf_counter() - t
@@ -110,6 +134,9 @@ def eval_cmd(
     test_labels: Optional[Path] = typer.Option(None, "--test-labels", help="Labels of the unseen normal-light sequence."),
     dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen dark sequence."),
     dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen dark sequence."),
+    boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
+    test_boxes: Optional[Path] = typer.Option(None, "--test-boxes", help="Boxes of the unseen normal-light sequence."),
+    dark_boxes: Optional[Path] = typer.Option(None, "--dark-boxes", help="Boxes of the unseen dark sequence."),
     orientation: Optional[str] = typer.Option(None, "--orientation",
                                               help="Comma-separated Euler-angle columns of the stem "
                                                    "(default yaw,pitch,roll when present)."),
@@ -127,18 +154,21 @@ def eval_cmd(
     check_range("--folds", folds, 2, 1000, integer=True)
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    views = _views(boxes, paths)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
     unseen = {}
-    for key, (u_images, u_labels, opt) in {"test": (test_images, test_labels, "--test"),
-                                           "dark": (dark_images, dark_labels, "--dark")}.items():
+    for key, (u_images, u_labels, u_boxes, opt) in {"test": (test_images, test_labels, test_boxes, "--test"),
+                                                    "dark": (dark_images, dark_labels, dark_boxes, "--dark")}.items():
         if (u_images is None) != (u_labels is None):
             raise InputError(f"{opt}-images and {opt}-labels go together")
+        if (u_boxes is None) != (views is None) and u_images is not None:
+            raise InputError(f"--boxes and {opt}-boxes go together")
         if u_images is not None:
             assert u_labels is not None  # checked just above: both or neither
             unames, upaths, uimgs, uY = load_labelled(u_images, u_labels, progress=True)
             if unames != names:
                 raise InputError(f"angle columns {unames} differ from the training labels {names}", path=u_labels)
-            unseen[key] = (upaths, uimgs, uY)
+            unseen[key] = (upaths, uimgs, uY, _views(u_boxes, upaths))
     from contextlib import nullcontext
 
     from artmotion.io import atomic_dir, atomic_write
@@ -150,16 +180,16 @@ def eval_cmd(
             t = time.perf_counter()
             X = regs[f].features(imgs)
             mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f,
-                                                          method=method)
+                                                          method=method, views=views)
             res = summary(Y, mean, std, fmean, cols, names)
             res["seconds"] = time.perf_counter() - t
             if dst is not None:
                 write_predictions(dst / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
                 write_predictions(dst / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
             if unseen:
-                reg = regs[f].fit(X, Y, names)
-            for key, (upaths, uimgs, uY) in unseen.items():
-                um, us = reg.predict(uimgs, return_std=True)
+                reg = regs[f].fit(X, Y, names, views=views)
+            for key, (upaths, uimgs, uY, uviews) in unseen.items():
+                um, us = reg.predict(uimgs, return_std=True, views=uviews)
                 ufm, ufs = reg.make_filter().filter(um, us)
                 res.update({f"{key} {k}": v for k, v in summary(uY, um, us, ufm, cols, names).items()})
                 if dst is not None:

@@ -91,3 +91,31 @@ def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Seq
         for i, img in enumerate(images):
             vals = ",".join(f"{mean[i, k]:.4f},{std[i, k]:.4f}" for k in range(len(names)))
             fh.write(f"{img},{vals}\n")
+
+
+BOX_COLUMNS = ["image", "x", "y", "w", "h", "frame_w", "frame_h"]
+
+
+def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
+    """Where each crop was cut from its frame (:func:`artmotion.pose.features.box_views`), from a
+    CSV ``image,x,y,w,h,frame_w,frame_h`` (``artmotion pose render`` writes one, ``boxes.csv``).
+    Rows are matched to the crops by file name without extension (a crop ``000001.png`` and its
+    frame ``000001.jpg``); every crop needs a row."""
+    from artmotion.pose.features import box_views
+
+    header, rows = read_csv(path, what="boxes CSV")
+    if [h.lower() for h in header] != BOX_COLUMNS:
+        raise InputError(f"header must be '{','.join(BOX_COLUMNS)}'", path=path, line=1)
+    boxes, sizes = {}, {}
+    for lineno, row in rows:
+        stem = Path(row[0]).stem
+        if not stem:
+            raise InputError("empty image name", path=path, line=lineno)
+        x, y = (cell_number(c, n, path, lineno, -1e6, 1e6) for n, c in zip(("x", "y"), row[1:3]))
+        w, h, fw, fh = (cell_number(c, n, path, lineno, 1e-3, 1e6) for n, c in zip(BOX_COLUMNS[3:], row[3:7]))
+        boxes[stem], sizes[stem] = (x, y, w, h), (fw, fh)
+    missing = [p.name for p in images if p.stem not in boxes]
+    if missing:
+        raise InputError(f"no box for image {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""),
+                         path=path)
+    return np.concatenate([box_views([boxes[p.stem]], sizes[p.stem]) for p in images])

@@ -63,7 +63,7 @@ def errors(Y: np.ndarray, P: np.ndarray, cols: Columns, names: Sequence[str]) ->
 
 
 def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: int = 5, progress: bool = False,
-                   split: str = "random", seed: int = 0, **reg_kwargs):
+                   split: str = "random", seed: int = 0, views: np.ndarray | None = None, **reg_kwargs):
     """Out-of-fold predictions: ``(mean, std, filtered_mean, filtered_std, fold_id)``.
 
     ``split="random"``: frames are dealt to folds at random (the usual k-fold protocol;
@@ -72,7 +72,8 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     Filtering: with contiguous folds the Kalman filter runs over each test block; with random
     folds the out-of-fold predictions of all frames, in time order, are one sequence (every
     frame predicted by a model that never saw it) and the filter runs over that, with the mean
-    of the folds' acceleration priors (each from training labels only).
+    of the folds' acceleration priors (each from training labels only). ``views``: the crops'
+    :func:`artmotion.pose.features.box_views`, for models that use them.
     """
     n = len(X)
     if split not in ("contiguous", "random"):
@@ -100,8 +101,8 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
         train = np.setdiff1d(np.arange(n), test)
         reg = PoseRegressor(**reg_kwargs)
         # keep the training blocks in time order so the motion prior sees real sequences
-        reg.fit(X[train], Y[train], names)
-        m, s = reg.predict(X[test], return_std=True)
+        reg.fit(X[train], Y[train], names, views=None if views is None else views[train])
+        m, s = reg.predict(X[test], return_std=True, views=None if views is None else views[test])
         mean[test], std[test] = m, s
         accel.append(accel_variance(Y[train], frames=train))  # training labels, no gaps or seams
         if split == "contiguous":

@@ -10,7 +10,11 @@
   dropped as VLFeat does), each histogram L1-normalised and square-rooted. With 16-pixel cells on a
   64×48 crop: 4×3 cells × 58 = 696 (the thesis' dimension); ``cell`` is configurable.
 
+* **cnn** — the pixels of the resized crop (BGR, [0, 1]); the fitted model turns them into a
+  learned feature (:mod:`artmotion.pose.cnn`), as it turns HOG into its principal components.
+
 ``extract(images, kind)`` accepts a list of BGR/grey uint8 crops of any size.
+``box_views(boxes, frame_size)`` describes where each crop was cut from its frame.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import numpy as np
 from artmotion.errors import InputError
 
 CROP_W, CROP_H = 64, 48  # the thesis' fixed size (width x height)
-FEATURES = ("hog", "lbp")
+FEATURES = ("hog", "lbp", "cnn")
 _EPS = 1e-4
 
 
@@ -152,7 +156,38 @@ def lbp_batch(batch: np.ndarray, cell: int = 16) -> np.ndarray:
     return out.reshape(B, -1)
 
 
+def pixels_batch(batch: np.ndarray, cell: int = 0) -> np.ndarray:
+    """The resized crops themselves, one row each (the ``cnn`` feature's input)."""
+    return batch.reshape(len(batch), -1)
+
+
+#: columns of :func:`box_views`
+VIEW_DIM = 4
+
+
+def box_views(boxes, frame_size: tuple[float, float]) -> np.ndarray:
+    """``(n, 4)`` where boxes ``(x, y, w, h)`` lie in a ``frame_size = (width, height)`` frame:
+    the box centre relative to the frame centre (x, y, in frame widths, times 4), the log aspect
+    ``log(w / h)`` and the log height in frame widths.
+
+    A crop resized to a fixed size forgets this, but it matters: through a pinhole camera the same
+    3-D orientation looks different at the edge of the picture than at its centre (the viewing
+    ray differs by up to ~16° in a 640-px endoscope frame), and the box's shape is part of the
+    pose's appearance."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    W, H = float(frame_size[0]), float(frame_size[1])
+    if W <= 0 or H <= 0:
+        raise InputError(f"frame size {frame_size} is not positive")
+    if not np.all(np.isfinite(b)) or np.any(b[:, 2:] <= 0):
+        raise InputError("boxes need finite positions and positive widths and heights")
+    cx = (b[:, 0] + b[:, 2] / 2 - W / 2) / W
+    cy = (b[:, 1] + b[:, 3] / 2 - H / 2) / W
+    return np.stack([4 * cx, 4 * cy, np.log(b[:, 2] / b[:, 3]), np.log(b[:, 3] / W)], 1).astype(np.float32)
+
+
 def feature_dim(kind: str, size: tuple[int, int] = (CROP_W, CROP_H), cell: int | None = None) -> int:
+    if kind == "cnn":
+        return size[0] * size[1] * 3
     cell = default_cell(kind) if cell is None else cell
     per = 31 if kind == "hog" else _LBP_UNIFORM
     return (size[0] // cell) * (size[1] // cell) * per
@@ -175,11 +210,11 @@ def extract(
     if kind not in FEATURES:
         raise InputError(f"unknown feature {kind!r}; choose one of {', '.join(FEATURES)}")
     cell = default_cell(kind) if cell is None else int(cell)
-    if cell < 2 or size[0] // cell < 1 or size[1] // cell < 1:
+    if kind != "cnn" and (cell < 2 or size[0] // cell < 1 or size[1] // cell < 1):
         raise InputError(f"cell size {cell} does not fit a {size[0]}x{size[1]} crop")
     n = len(images)
     out = np.empty((n, feature_dim(kind, size, cell)), dtype=np.float32)
-    fn = hog_batch if kind == "hog" else lbp_batch
+    fn = {"hog": hog_batch, "lbp": lbp_batch, "cnn": pixels_batch}[kind]
 
     def work(s):
         batch = np.stack([resize_crop(im, size, blur) for im in images[s : s + chunk]])

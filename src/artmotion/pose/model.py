@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, need_package
 from artmotion.filters import KalmanFilter, constant_velocity
 from artmotion.io import atomic_path
 from artmotion.io.files import read_head
@@ -24,6 +24,8 @@ from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
 MAGIC = "artmotion-pose-gp"
 VERSION = 2
+#: the last fraction of the training rows on which the GP's variance is calibrated
+CALIBRATE = 0.2
 
 
 def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = None) -> np.ndarray:
@@ -92,11 +94,17 @@ class PoseFilter:
 
 
 class PoseRegressor:
-    """Joint angles from a tool crop: HOG/LBP features + one GP per angle (scikit-learn style).
+    """Joint angles from a tool crop: HOG/LBP/learned features + one GP per angle (scikit-learn style).
 
-    Parameters: ``feature`` (``"hog"`` or ``"lbp"``), ``cell`` (feature cell size; default 8 for
-    HOG, 16 for LBP), ``size`` (crop resize, width×height), ``blur`` (Gaussian sigma in pixels of
-    the resized crop, against sensor noise; 0 = none), ``n_components`` (the features are
+    Parameters: ``feature`` (``"hog"``, ``"lbp"`` or ``"cnn"``: a small network trained in
+    ``fit`` on the training crops, :mod:`artmotion.pose.cnn`; needs PyTorch), ``cell`` (feature
+    cell size; default 8 for HOG, 16 for LBP), ``size`` (crop resize, width×height), ``blur``
+    (Gaussian sigma in pixels of the resized crop, against sensor noise; 0 = none; default 0.7,
+    0 for ``cnn``), ``net_steps`` (``cnn``: training mini-batches of 64 crops), ``augment``
+    (``cnn``: appearance augmentation while training), ``opening_weight`` (``cnn``: the loss
+    weight of angles whose name contains "open", the jaw angle, against 1 for the others: the
+    jaws are small in the crop and their look depends on the roll; 3 takes 8 % off its error on
+    unseen motion, docs/pose.md), ``n_components`` (the features are
     projected on their first principal components before the GP; ``None`` keeps the raw
     feature), ``method`` (``"auto"``, ``"exact"``, ``"sparse"``), ``max_exact`` (``auto``
     switches to the sparse GP above this many training examples), ``neighbours`` (the exact GP's
@@ -107,9 +115,10 @@ class PoseRegressor:
     """
 
     def __init__(self, feature: str = "hog", cell: int | None = None, size: tuple[int, int] = (F.CROP_W, F.CROP_H),
-                 blur: float = 0.7, n_components: int | None = 128, method: str = "auto", max_exact: int = 6000,
+                 blur: float | None = None, n_components: int | None = 128, method: str = "auto", max_exact: int = 6000,
                  neighbours: int | None = 16, n_inducing: int = 1000, n_opt: int = 500, restarts: int = 1,
-                 seed: int = 0, progress: bool = False, inducing: str = "kmeans"):
+                 seed: int = 0, progress: bool = False, inducing: str = "kmeans", net_steps: int = 3000,
+                 augment: bool = True, opening_weight: float = 3.0):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
         if method not in ("auto", "exact", "sparse"):
@@ -117,7 +126,12 @@ class PoseRegressor:
         self.feature = feature
         self.cell = F.default_cell(feature) if cell is None else int(cell)
         self.size = (int(size[0]), int(size[1]))
-        self.blur = float(blur)
+        # the network learns its own blur (augmentation); HOG and LBP need one against sensor noise
+        self.blur = (0.0 if feature == "cnn" else 0.7) if blur is None else float(blur)
+        self.net_steps = net_steps
+        self.augment = augment
+        self.opening_weight = opening_weight
+        self.net_: Any = None  # artmotion.pose.cnn.CropNet once a cnn model is fitted
         self.n_components = n_components
         self.method = method
         self.max_exact = max_exact
@@ -138,15 +152,43 @@ class PoseRegressor:
     def features(self, images: Sequence[np.ndarray]) -> np.ndarray:
         return F.extract(images, self.feature, self.size, self.cell, blur=self.blur)
 
-    def _project(self, X: np.ndarray) -> np.ndarray:
+    def _project(self, X: np.ndarray, views: np.ndarray | None = None) -> np.ndarray:
+        """The GP's inputs: the learned feature of the network (``cnn``), the principal components
+        of the feature, or the feature itself."""
+        if self.net_ is not None:
+            from artmotion.pose import cnn
+
+            crops = np.asarray(X, dtype=np.float32).reshape(len(X), self.size[1], self.size[0], 3)
+            return cnn.embed(self.net_, crops, views).astype(np.float64)
         if self.pca_components_ is None:
             return X
         assert self.pca_mean_ is not None  # set together with ``pca_components_``
         return (np.asarray(X, dtype=np.float32) - self.pca_mean_) @ self.pca_components_.T
 
+    @property
+    def uses_views_(self) -> bool:
+        """Whether the model needs ``views`` (``features.box_views``) with every crop."""
+        return self.net_ is not None and self.net_.extra > 0
+
+    def _check_views(self, views, n: int, fitting: bool = False) -> np.ndarray | None:
+        """``views`` checked; ``None`` for a model that does not use them (HOG, LBP, a network
+        trained without them)."""
+        if views is None:
+            if self.uses_views_ and not fitting:
+                raise InputError("this pose model was trained with the boxes' places in their frames: "
+                                 "give the boxes (--boxes) with the crops")
+            return None
+        V = np.asarray(views, dtype=np.float32)
+        if V.shape != (n, F.VIEW_DIM) or not np.all(np.isfinite(V)):
+            raise InputError(f"views must be {n}x{F.VIEW_DIM} finite numbers (features.box_views), got {V.shape}")
+        return V if (self.feature == "cnn" if fitting else self.uses_views_) else None
+
     # -- training / prediction
-    def fit(self, images, Y, names: Sequence[str] | None = None):
-        """Fit on crops (list of images) or a precomputed feature matrix, and angles ``Y`` (n, k)."""
+    def fit(self, images, Y, names: Sequence[str] | None = None, views=None):
+        """Fit on crops (list of images) or a precomputed feature matrix, and angles ``Y`` (n, k).
+
+        ``views`` (``cnn`` only, else ignored): :func:`artmotion.pose.features.box_views` of the
+        crops' boxes; a model trained with them needs them at prediction too."""
         X = self._as_features(images)
         Y = np.asarray(Y, dtype=float)
         Y = Y.reshape(len(Y), -1)
@@ -158,15 +200,29 @@ class PoseRegressor:
             raise InputError("labels contain NaN or infinite values")
         self.names_ = list(names) if names is not None else [f"angle{k}" for k in range(Y.shape[1])]
         self.pca_mean_ = self.pca_components_ = None
-        if self.n_components is not None and self.n_components < min(X.shape):
+        self.net_ = None
+        V = self._check_views(views, len(X), fitting=True)
+        if self.feature == "cnn":
+            need_package("torch", "tools", "the cnn pose feature")
+            from artmotion.pose import cnn
+
+            # the network never sees the last rows, on which the GP's variance is calibrated
+            # (``fit_gp(calibrate=CALIBRATE)``): a network's feature of its own training crops is
+            # optimistic, and so would the variance be
+            m = max(3, int(round(len(X) * (1 - CALIBRATE))))
+            crops = np.asarray(X[:m], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
+            weights = [self.opening_weight if "open" in n.lower() else 1.0 for n in self.names_]
+            self.net_ = cnn.fit_net(crops, Y[:m], self.net_steps, seed=self.seed, extra=None if V is None else V[:m],
+                                    augmented=self.augment, weights=np.array(weights), progress=self.progress)
+        elif self.n_components is not None and self.n_components < min(X.shape):
             from sklearn.decomposition import PCA
 
             pca = PCA(self.n_components, svd_solver="randomized", random_state=self.seed).fit(X)
             self.pca_mean_ = pca.mean_.astype(np.float32)
             self.pca_components_ = pca.components_.astype(np.float32)
-        self.gp_ = fit_gp(self._project(X), Y, self.method, self.max_exact, self.n_inducing, self.n_opt,
+        self.gp_ = fit_gp(self._project(X, V), Y, self.method, self.max_exact, self.n_inducing, self.n_opt,
                           self.restarts, self.seed, progress=self.progress, inducing=self.inducing,
-                          neighbours=self.neighbours)
+                          neighbours=self.neighbours, calibrate=CALIBRATE)
         self.accel_var_ = accel_variance(Y)
         return self
 
@@ -175,16 +231,21 @@ class PoseRegressor:
             return images
         return self.features(images)
 
-    def predict(self, images, return_std: bool = False, batch: int = 256):
-        """Mean (and std) of every angle for crops or a feature matrix; chunks of ``batch`` frames
-        run on a small thread pool (NumPy and OpenCV release the GIL)."""
+    def predict(self, images, return_std: bool = False, batch: int = 256, views=None):
+        """Mean (and std) of every angle for crops or a feature matrix (and their ``views`` if the
+        model was trained with them); chunks of ``batch`` frames run on a small thread pool (NumPy
+        and OpenCV release the GIL; the network runs on torch's own threads)."""
         gp = self.gp_
         if gp is None:
             raise RuntimeError("PoseRegressor is not fitted")
         assert self.names_ is not None  # set with ``gp_``
+        V = self._check_views(views, len(images))
+        if self.net_ is not None:  # the network runs on the whole batch, on torch's threads
+            images = self._project(self._as_features(images), V)
 
         def work(s):
-            return gp.predict(self._project(self._as_features(images[s : s + batch])), return_std=True)
+            part = images[s : s + batch]
+            return gp.predict(part if self.net_ is not None else self._project(self._as_features(part)), return_std=True)
 
         starts = list(range(0, len(images), batch))
         if len(starts) > 1:
@@ -223,6 +284,10 @@ class PoseRegressor:
             pca_mean=np.zeros(0, np.float32) if self.pca_mean_ is None else self.pca_mean_,
             pca_components=np.zeros((0, 0), np.float32) if self.pca_components_ is None else self.pca_components_,
         )
+        if self.net_ is not None:
+            from artmotion.pose import cnn
+
+            data.update({_NET + k: v for k, v in cnn.state_arrays(self.net_).items()})
         with atomic_path(path, suffix=".npz") as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **data)
@@ -280,6 +345,9 @@ def _array(d: dict, key: str, shape: tuple, kind: str = "f") -> np.ndarray:
     return a
 
 
+#: prefix of the network's weights in a ``cnn`` model file
+_NET = "net:"
+
 #: no number in a model is larger (float32, in which inputs are stored, ends at 3.4e38)
 _MAX_VALUE = 1e30
 
@@ -317,7 +385,19 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
     full = F.feature_dim(feature, size, cell)
     pca_c = _array(d, "pca_components", (None, None))
     reg = cls(feature=feature, cell=cell, size=size, blur=blur)
-    if pca_c.size:
+    if feature == "cnn":
+        need_package("torch", "tools", "a cnn pose model")
+        from artmotion.pose import cnn
+
+        net = {k[len(_NET):]: _array(d, k, (None,) * d[k].ndim) for k in d if k.startswith(_NET)}
+        try:
+            reg.net_ = cnn.from_arrays(net, k, size)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        if dim != reg.net_.head.in_features:
+            raise InputError(f"inputs of dimension {dim}, but the network's feature has {reg.net_.head.in_features}")
+        reg.n_components = None
+    elif pca_c.size:
         if pca_c.shape != (dim, full):
             raise InputError(f"'pca_components' is {pca_c.shape[0]}x{pca_c.shape[1]}, not {dim}x{full} "
                              f"(inputs of the GP x {feature} features of a {size[0]}x{size[1]} crop)")
@@ -345,7 +425,8 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
     reg.accel_var_ = accel_var.astype(float)
     reg.method = method
     # a test prediction on a gray crop: whatever slipped through shows here, before any long work
-    mean, std = reg.predict([np.full((size[1], size[0], 3), 128, np.uint8)], return_std=True)
+    views = np.zeros((1, F.VIEW_DIM)) if reg.uses_views_ else None
+    mean, std = reg.predict([np.full((size[1], size[0], 3), 128, np.uint8)], return_std=True, views=views)
     if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
         raise InputError("its prediction is not finite")
     return reg

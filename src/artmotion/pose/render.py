@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from artmotion.errors import check_range, check_seed
+from artmotion.errors import InputError, check_range, check_seed
 from artmotion.io import atomic_dir, atomic_write
 from artmotion.io.media import write_image
 
@@ -104,8 +104,40 @@ def pose_script(n: int, rng: np.random.Generator) -> np.ndarray:
         keys_t.append(t)
         keys_v.append(nxt)
         cur = nxt
-    kt = np.array(keys_t)
-    kv = np.array(keys_v)
+    return _through_keys(np.array(keys_t), np.array(keys_v), n, rng)
+
+
+def cover_script(n: int, rng: np.random.Generator, hop: tuple[int, int] = (4, 11)) -> np.ndarray:
+    """``(n, 5)`` motion that covers the joint ranges evenly, for training sets.
+
+    Key poses are a scrambled Sobol sequence over (yaw, pitch, roll, opening, depth) in their
+    ranges, so that every region of the pose space, and every combination of the angles, is
+    visited about equally (the pick-and-place script dwells near closed and wide-open jaws and
+    leaves combinations out); a greedy nearest-neighbour tour visits them in turn by minimum-jerk
+    moves of ``hop`` frames, so the frames between key poses are continuous motion (with its blur),
+    as in a real recording."""
+    from scipy.stats import qmc
+
+    k = n // hop[0] + 2
+    lo = np.array([RANGES[a][0] for a in (*ANGLES, "depth")])
+    hi = np.array([RANGES[a][1] for a in (*ANGLES, "depth")])
+    u = qmc.Sobol(5, scramble=True, seed=rng).random_base2(int(math.ceil(math.log2(k))))[:k]
+    order, left = [0], np.ones(k, bool)
+    left[0] = False
+    for _ in range(k - 1):  # greedy tour: short moves between neighbouring key poses
+        d = np.where(left, ((u - u[order[-1]]) ** 2).sum(1), np.inf)
+        order.append(int(np.argmin(d)))
+        left[order[-1]] = False
+    kv = lo + (hi - lo) * u[order]
+    kt = np.concatenate([[0], np.cumsum(rng.integers(hop[0], hop[1], k - 1))])
+    return _through_keys(kt, kv, n, rng)
+
+
+MOTIONS = {"script": pose_script, "cover": cover_script}
+
+
+def _through_keys(kt: np.ndarray, kv: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Minimum-jerk moves through key poses ``kv`` at frames ``kt``, plus a little hand tremor."""
     frames = np.arange(n, dtype=float)
     seg = np.clip(np.searchsorted(kt, frames, side="right") - 1, 0, len(kt) - 2)
     t0, t1 = kt[seg], kt[seg + 1]
@@ -288,10 +320,15 @@ class RenderedFrame:
     angles: np.ndarray  # yaw, pitch, roll, opening (deg)
 
 
-def render_sequence(n: int, seed: int = 0, dark: bool = False):
-    """Yield ``n`` :class:`RenderedFrame` of one pick-and-place sequence (deterministic for a seed)."""
+def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "script", scenes: int = 1):
+    """Yield ``n`` :class:`RenderedFrame` of one sequence (deterministic for a seed).
+
+    ``motion``: ``"script"`` (pick and place, :func:`pose_script`) or ``"cover"`` (even coverage
+    of the joint ranges, :func:`cover_script`). ``scenes`` > 1 splits the sequence into that many
+    stretches, each over its own tissue and tint (a training set that has seen one background
+    learns that background)."""
     rng = np.random.default_rng([seed, 3])
-    traj = pose_script(n, rng)
+    traj = MOTIONS[motion](n, rng)
     bg = tissue(rng, WIDTH + 80, HEIGHT + 60)
     yy, xx = np.mgrid[0:HEIGHT, 0:WIDTH].astype(np.float32)
     vign = np.clip(1.15 - 0.9 * (((xx - WIDTH / 2) / WIDTH) ** 2 + ((yy - HEIGHT / 2) / HEIGHT) ** 2) * 2.2, 0.25, 1.0)
@@ -299,6 +336,9 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False):
     if dark:  # the same scene, motion and draws as the normal-light render of this seed, in low light
         gain = 0.18 + (gain - 0.7) * (0.35 - 0.18) / (1.2 - 0.7)
     tint = rng.uniform(0.9, 1.1, 3).astype(np.float32)
+    scene_rng = np.random.default_rng([seed, 4])  # its own stream: one scene renders as before
+    backgrounds = [bg] + [tissue(scene_rng, WIDTH + 80, HEIGHT + 60) for _ in range(scenes - 1)]
+    tints = [tint] + [scene_rng.uniform(0.85, 1.15, 3).astype(np.float32) for _ in range(scenes - 1)]
     # (two series drawn and unused: kept so that a seed renders the same images as before)
     _smooth_series(rng, n, 50, 0, 80), _smooth_series(rng, n, 50, 0, 60)
     # second tool: on in ~40 % of frames, its tip wandering around the first tool's tip
@@ -320,6 +360,7 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False):
         return pose, c
 
     for i in range(n):
+        bg, tint = backgrounds[i * scenes // n], tints[i * scenes // n]
         pose_i, cam = posed(traj[i], i)
         ox = int(np.clip(40 + cam[0] * 0.6, 0, 80))
         oy = int(np.clip(30 + cam[1] * 0.6, 0, 60))
@@ -370,16 +411,19 @@ MAX_POSES = 1_000_000
 
 
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
-                  progress: bool = False) -> Path:
+                  progress: bool = False, motion: str = "script", scenes: int = 1) -> Path:
     """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``.
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
     check_range("--poses", n, 1, MAX_POSES, integer=True)
     check_seed(seed)
+    if motion not in MOTIONS:
+        raise InputError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
+    check_range("--scenes", scenes, 1, n, integer=True)
     out = Path(out)
     with atomic_dir(out, replace=_is_rendering) as tmp:
-        _write_dataset(tmp, n, seed, dark, frames, progress)
+        _write_dataset(tmp, n, seed, dark, frames, progress, motion, scenes)
     return out
 
 
@@ -389,11 +433,12 @@ def _is_rendering(folder: Path) -> bool:
     return "labels.csv" in names and names <= {"crops", "frames", "labels.csv", "boxes.csv"}
 
 
-def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool) -> None:
+def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool, motion: str,
+                   scenes: int) -> None:
     (out / "crops").mkdir(parents=True, exist_ok=True)
     if frames:
         (out / "frames").mkdir(parents=True, exist_ok=True)
-    it = render_sequence(n, seed, dark)
+    it = render_sequence(n, seed, dark, motion, scenes)
     if progress:
         from tqdm import tqdm
 
@@ -413,6 +458,6 @@ def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progr
             fh.write(r[0] + "," + ",".join(f"{v:.4f}" for v in r[1:]) + "\n")
     if frames:
         with atomic_write(out / "boxes.csv") as fh:
-            fh.write("image,x,y,w,h\n")
+            fh.write("image,x,y,w,h,frame_w,frame_h\n")
             for b in boxes:
-                fh.write(",".join(str(v) for v in b) + "\n")
+                fh.write(",".join(str(v) for v in (*b, WIDTH, HEIGHT)) + "\n")

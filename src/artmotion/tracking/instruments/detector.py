@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_range, need_package
 
 __all__ = ["ToolDetector", "need_torch"]
 
@@ -28,10 +28,7 @@ _FORMAT = "artmotion-tool-detector-1"
 
 def need_torch() -> None:
     """An :class:`InputError` saying how to install PyTorch when it is missing (the ``tools`` extra)."""
-    import importlib.util
-
-    if importlib.util.find_spec("torch") is None:
-        raise InputError("the tool commands need PyTorch: pip install 'artmotion[tools]' (or make install)")
+    need_package("torch", "tools", "the tool commands")
 
 
 class ToolDetector:

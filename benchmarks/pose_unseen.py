@@ -1,0 +1,232 @@
+"""Pose on motion the model has never seen (issue 17): HOG + GP vs the cnn feature + GP.
+
+    .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv]
+
+Renders (once, cached under --out) two training sets of 4000 frames, seed 0: ``normal`` (the
+pick-and-place script) and ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
+evenly, ten backgrounds), and four unseen test sequences of 600 frames: pick and place with seeds
+1 and 2, each in normal light and dark (``--dark``: the same frames in low light). Then, every
+model trained on the training crops only:
+
+* unseen sequences: HOG (the thesis' model on the script set, and on both sets) and cnn (both
+  sets, with the boxes' places in their frames); raw and Kalman-filtered; ±3σ coverage;
+* protocols side by side on the 8000 training crops: random 5-fold (the thesis), contiguous 5-fold;
+* learning curve: the cnn model on 1000-8000 training crops (every k-th frame of both sets);
+* ablations of the cnn model (mean over the four unseen sequences): no box views, no augmentation,
+  equal loss weights, cover set only, script set only;
+* error against the distance from a test pose to the nearest training pose;
+* cost: training time on 4000 crops, one frame's prediction, batch throughput (run it alone).
+
+Prints Markdown and writes it between ``<!-- pose-unseen -->`` markers of docs/pose.md, and
+docs/pose_unseen.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _docs import replace_block  # noqa: E402
+
+from artmotion.pose.data import load_labelled, read_views  # noqa: E402
+from artmotion.pose.evaluate import Columns, cross_validate, errors, summary  # noqa: E402
+from artmotion.pose.model import PoseRegressor  # noqa: E402
+from artmotion.pose.render import write_dataset  # noqa: E402
+
+RENDERS = {  # name: (poses, seed, dark, motion, scenes)
+    "normal": (4000, 0, False, "script", 1),
+    "cover": (4000, 0, False, "cover", 10),
+    "test": (600, 1, False, "script", 1),
+    "dark": (600, 1, True, "script", 1),
+    "test2": (600, 2, False, "script", 1),
+    "dark2": (600, 2, True, "script", 1),
+}
+UNSEEN = ("test", "dark", "test2", "dark2")
+
+
+def load(out: Path, name: str):
+    d = out / name
+    n, seed, dark, motion, scenes = RENDERS[name]
+    if not (d / "boxes.csv").exists() or "frame_w" not in (d / "boxes.csv").read_text().splitlines()[0]:
+        print(f"rendering {d} ...", flush=True)
+        write_dataset(d, n, seed, dark, frames=True, motion=motion, scenes=scenes)
+    names, paths, imgs, Y = load_labelled(d / "crops", d / "labels.csv")
+    return names, imgs, Y, read_views(d / "boxes.csv", paths)
+
+
+def score(reg, data, cols, names, views: bool) -> dict:
+    """Per unseen sequence: summary(); plus the means over the four."""
+    res = {}
+    for k in UNSEEN:
+        _, imgs, Y, V = data[k]
+        m, s = reg.predict(imgs, return_std=True, views=V if views else None)
+        fm, _ = reg.make_filter().filter(m, s)
+        res[k] = summary(Y, m, s, fm, cols, names)
+        res[k]["pred"] = m
+    for q in ("orientation", "opening", "orientation filtered", "opening filtered", "all in 3sd", "opening in 3sd"):
+        res[f"mean {q}"] = float(np.mean([res[k][q] for k in UNSEEN]))
+    for q in ("orientation", "opening"):
+        res[f"dark/normal {q}"] = float(np.mean([res[d][q] / res[t][q] for t, d in (("test", "dark"), ("test2", "dark2"))]))
+    return res
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default=str(ROOT / "out" / "pose"))
+    ap.add_argument("--no-docs", action="store_true")
+    ap.add_argument("--skip-cv", action="store_true", help="leave out the 5-fold protocols (10 cnn trainings)")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    data = {k: load(out, k) for k in RENDERS}
+    names = data["normal"][0]
+    cols = Columns.from_names(names)
+    both = {i: np.concatenate([data["cover"][i], data["normal"][i]]) if i != 1 else data["cover"][1] + data["normal"][1]
+            for i in (1, 2, 3)}
+    imgs, Y, V = both[1], both[2], both[3]
+    lines: list[str] = []
+    say = lambda s="": (print(s, flush=True), lines.append(s))  # noqa: E731
+    results: dict = {}
+
+    def train(label, feature, tr_imgs, tr_Y, tr_V=None, **kw):
+        t = time.perf_counter()
+        reg = PoseRegressor(feature=feature, **kw).fit(tr_imgs, tr_Y, names, views=tr_V)
+        sec = time.perf_counter() - t
+        res = score(reg, data, cols, names, tr_V is not None)
+        res["train seconds"], res["n"] = sec, len(tr_Y)
+        results[label] = res
+        print(f"  {label}: {res['mean orientation']:.2f} / {res['mean opening']:.2f} ({sec:.0f} s)", flush=True)
+        return reg, res
+
+    # -- unseen sequences
+    train("HOG, script set (the thesis' model)", "hog", data["normal"][1], data["normal"][2])
+    train("HOG, both sets", "hog", imgs, Y)
+    cnn_reg, _ = train("cnn + views, both sets (default recipe)", "cnn", imgs, Y, V)
+    say("#### Unseen sequences (trained on rendered sets only; mean error in degrees, orientation / opening)")
+    say()
+    say("| model | n | seq 1 | seq 1 dark | seq 2 | seq 2 dark | **mean** | mean, Kalman-filtered | dark / normal | "
+        "opening in ±3σ | all 4 in ±3σ |")
+    say("|---|---|---|---|---|---|---|---|---|---|---|")
+
+    def row(label):
+        r = results[label]
+        cells = " | ".join(f"{r[k]['orientation']:.2f} / {r[k]['opening']:.2f}" for k in UNSEEN)
+        say(f"| {label} | {r['n']} | {cells} | **{r['mean orientation']:.2f} / {r['mean opening']:.2f}** | "
+            f"{r['mean orientation filtered']:.2f} / {r['mean opening filtered']:.2f} | "
+            f"{r['dark/normal orientation']:.2f}× / {r['dark/normal opening']:.2f}× | "
+            f"{100 * r['mean opening in 3sd']:.1f} % | {100 * r['mean all in 3sd']:.1f} % |")
+
+    for label in list(results):
+        row(label)
+    # -- ablations of the cnn recipe
+    train("cnn without views", "cnn", imgs, Y)
+    train("cnn without augmentation", "cnn", imgs, Y, V, augment=False)
+    train("cnn, opening weight 1 (not 3)", "cnn", imgs, Y, V, opening_weight=1.0)
+    train("cnn, cover set only", "cnn", data["cover"][1], data["cover"][2], data["cover"][3])
+    train("cnn, script set only", "cnn", data["normal"][1], data["normal"][2], data["normal"][3])
+    for label in ("cnn without views", "cnn without augmentation", "cnn, opening weight 1 (not 3)", "cnn, cover set only",
+                  "cnn, script set only"):
+        row(label)
+    say()
+    # -- learning curve
+    say("#### Learning curve (cnn + views; every k-th frame of both training sets; mean over the four unseen sequences)")
+    say()
+    say("| training crops | orientation | opening | all 4 in ±3σ | training (s) |")
+    say("|---|---|---|---|---|")
+    for n in (1000, 2000, 4000):
+        idx = np.arange(0, len(Y), len(Y) // n)[:n]
+        train(f"cnn, {n} crops", "cnn", [imgs[i] for i in idx], Y[idx], V[idx])
+    curve = [(f"cnn, {n} crops", n) for n in (1000, 2000, 4000)] + [("cnn + views, both sets (default recipe)", len(Y))]
+    for label, n in curve:
+        r = results[label]
+        say(f"| {n} | {r['mean orientation']:.2f} | {r['mean opening']:.2f} | {100 * r['mean all in 3sd']:.1f} % | "
+            f"{r['train seconds']:.0f} |")
+    say()
+    # -- error vs distance to the nearest training pose
+    from scipy.spatial import cKDTree
+
+    scale = Y.std(0)
+    tree = cKDTree(Y / scale)
+    rows = []
+    for k in ("test", "test2"):
+        d, _ = tree.query(data[k][2] / scale)
+        e = errors(data[k][2], results["cnn + views, both sets (default recipe)"][k]["pred"], cols, names)
+        eh = errors(data[k][2], results["HOG, script set (the thesis' model)"][k]["pred"], cols, names)
+        rows.append((d, e["orientation"], e["opening"], eh["orientation"], eh["opening"]))
+    d, eo, ep, ho, hp = (np.concatenate(c) for c in zip(*rows))
+    say("#### Error against the distance from a test pose to the nearest training pose (unseen normal-light sequences; "
+        "distance in standard deviations of the four angles)")
+    say()
+    say("| distance | frames | cnn: orientation / opening | HOG (script set): orientation / opening |")
+    say("|---|---|---|---|")
+    edges = np.quantile(d, [0, 0.25, 0.5, 0.75, 1.0])
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        s = (d >= lo) & (d <= hi)
+        say(f"| {lo:.2f}–{hi:.2f} | {s.sum()} | {eo[s].mean():.2f} / {ep[s].mean():.2f} | "
+            f"{ho[s].mean():.2f} / {hp[s].mean():.2f} |")
+    say()
+    # -- protocols side by side
+    if not args.skip_cv:
+        say("#### Protocols side by side (both training sets, 8000 crops; mean error, degrees, orientation / opening)")
+        say()
+        say("| protocol | HOG | cnn + views | HOG, all 4 in ±3σ | cnn, all 4 in ±3σ |")
+        say("|---|---|---|---|---|")
+        for split in ("random", "contiguous"):
+            cells = []
+            for feature, views in (("hog", None), ("cnn", V)):
+                reg = PoseRegressor(feature=feature)
+                X = reg.features(imgs)
+                m, s, fm, _, _ = cross_validate(X, Y, names, 5, split=split, feature=feature, views=views)
+                cells.append(summary(Y, m, s, fm, cols, names))
+                results[f"{feature} {split} 5-fold"] = cells[-1]
+            say(f"| {split} 5-fold | {cells[0]['orientation']:.2f} / {cells[0]['opening']:.2f} | "
+                f"{cells[1]['orientation']:.2f} / {cells[1]['opening']:.2f} | {100 * cells[0]['all in 3sd']:.1f} % | "
+                f"{100 * cells[1]['all in 3sd']:.1f} % |")
+        r = results["cnn + views, both sets (default recipe)"]
+        h = results["HOG, both sets"]
+        say(f"| unseen sequences (mean of four) | {h['mean orientation']:.2f} / {h['mean opening']:.2f} | "
+            f"{r['mean orientation']:.2f} / {r['mean opening']:.2f} | {100 * h['mean all in 3sd']:.1f} % | "
+            f"{100 * r['mean all in 3sd']:.1f} % |")
+        say()
+    # -- cost
+    one_img, one_view = data["test"][1][300], data["test"][3][300:301]
+    kf = cnn_reg.make_filter()
+
+    def frame():
+        m, s = cnn_reg.predict([one_img], return_std=True, views=one_view)
+        kf.step(m[0], s[0])
+
+    frame()
+    t1 = min(_timed(frame) for _ in range(30))
+    batch, bviews = data["test"][1] * 4, np.concatenate([data["test"][3]] * 4)
+    tb = min(_timed(lambda: cnn_reg.predict(batch, return_std=True, views=bviews)) for _ in range(2))
+    t4000 = results["cnn, cover set only"]["train seconds"]
+    say(f"Cost (2 CPU cores): training on 4000 crops {t4000:.0f} s (cover set; 8000 crops: "
+        f"{results['cnn + views, both sets (default recipe)']['train seconds']:.0f} s: the network's cost is its "
+        f"3000 mini-batches, whatever n), one frame (resize, network, GP mean and variance, Kalman step) "
+        f"{1000 * t1:.2f} ms, batch {len(batch) / tb:.0f} frames/s.")
+    text = "\n".join(lines)
+    if not args.no_docs:
+        replace_block(ROOT / "docs" / "pose.md", "pose-unseen", text)
+        slim = {k: {q: ({kk: vv for kk, vv in v.items() if kk != "pred"} if isinstance(v, dict) else v)
+                    for q, v in r.items()} for k, r in results.items()}
+        (ROOT / "docs" / "pose_unseen.json").write_text(json.dumps(slim, indent=1, default=float) + "\n")
+        print("updated docs/pose.md and docs/pose_unseen.json")
+
+
+def _timed(fn) -> float:
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,199 @@
+"""A small convolutional network that learns pose features from rendered crops (PyTorch, CPU).
+
+Sec. 3.3 describes a crop by a generic feature (HOG, LBP) and lets the GP find the pose in it.
+A generic feature carries the jaw opening weakly, and a GP on it interpolates between training
+poses but does not extrapolate to new combinations of pose, background and light. Here a small
+network (four 3×3 convolution blocks, a fully connected layer) is trained on the training crops
+to regress the standardised angles, under appearance augmentation (gain, contrast, gamma, tint,
+blur, noise, specular glints, box jitter, occluding bars): what it learns is pose, not
+appearance. Its last hidden layer is the feature the GP (Eq. 3.1-3.5) regresses the angles on,
+so the prediction keeps the GP's variance (the thesis' reason for a GP).
+
+No downloaded weights: the network is trained here, in about a minute on two CPU cores.
+Only this module imports torch (the ``tools`` extra); the HOG and LBP models do not need it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import torch
+from torch import nn
+
+from artmotion.pose.features import VIEW_DIM
+
+#: width of the feature the GP sees
+DIM = 64
+#: inputs besides the crop when the boxes' places are known (``features.box_views``)
+VIEWS = VIEW_DIM
+
+
+def _block(cin: int, cout: int) -> nn.Sequential:
+    """A 3×3 convolution of stride 2 (3.7× cheaper to train here than a convolution and a pooling)."""
+    return nn.Sequential(nn.Conv2d(cin, cout, 3, stride=2, padding=1, bias=False), nn.BatchNorm2d(cout),
+                         nn.ReLU(inplace=True))
+
+
+def _cells(n: int, blocks: int = 4) -> int:
+    """Cells along a side of ``n`` pixels after ``blocks`` convolutions of stride 2."""
+    for _ in range(blocks):
+        n = (n + 1) // 2
+    return n
+
+
+class CropNet(nn.Module):
+    """``(n, 3, 48, 64)`` crops (each standardised to zero mean and unit variance), and ``extra``
+    more inputs per crop, → ``(n, dim)`` features and ``(n, k)`` standardised angles."""
+
+    def __init__(self, k: int, width: int = 16, dim: int = DIM, size: tuple[int, int] = (64, 48), extra: int = 0):
+        super().__init__()
+        w = width
+        self.extra = extra  # inputs besides the crop (4 with box views, else 0)
+        self.body = nn.Sequential(_block(3, w), _block(w, 2 * w), _block(2 * w, 4 * w), _block(4 * w, 4 * w),
+                                  nn.Flatten(), nn.Dropout(0.2))
+        cells = _cells(size[0]) * _cells(size[1])
+        self.embed = nn.Sequential(nn.Linear(4 * w * cells + extra, dim), nn.ReLU(inplace=True))
+        self.head = nn.Linear(dim, k)
+
+    def features(self, x: torch.Tensor, e: torch.Tensor | None = None) -> torch.Tensor:
+        h = self.body(x)
+        return self.embed(h if e is None else torch.cat([h, e], 1))
+
+    def forward(self, x: torch.Tensor, e: torch.Tensor | None = None) -> torch.Tensor:
+        return self.head(self.features(x, e))
+
+
+def standardise(batch: np.ndarray) -> np.ndarray:
+    """``(n, h, w, 3)`` float crops → ``(n, 3, h, w)``, each crop to zero mean and unit variance
+    (a crop's brightness and contrast are not pose)."""
+    x = np.ascontiguousarray(batch.transpose(0, 3, 1, 2), dtype=np.float32)
+    m = x.mean(axis=(1, 2, 3), keepdims=True)
+    s = x.std(axis=(1, 2, 3), keepdims=True)
+    return (x - m) / (s + 1e-3)
+
+
+def _streak(length: float, angle: float) -> np.ndarray:
+    """A motion-blur kernel: a line of ``length`` pixels at ``angle`` (radians), summing to 1."""
+    k = int(math.ceil(length)) | 1
+    kernel = np.zeros((k, k), np.float32)
+    c, d = (k - 1) / 2, length / 2
+    cv2.line(kernel, (round(c - d * math.cos(angle)), round(c - d * math.sin(angle))),
+             (round(c + d * math.cos(angle)), round(c + d * math.sin(angle))), 1.0, 1, cv2.LINE_AA)
+    return kernel / kernel.sum()
+
+
+def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Appearance changes that do not change the pose, for ``(n, h, w, 3)`` float crops in [0, 1]:
+    box jitter (a detector's box is a few per cent off in position and size), motion blur, blur, specular
+    glints, an occluding bar (another instrument's shaft), gain, tint, gamma, sensor noise."""
+    n, h, w, _ = batch.shape
+    out = np.empty_like(batch)
+    scale = np.asarray(rng.uniform(0.92, 1.08, n))
+    shift = np.asarray(rng.uniform(-0.05, 0.05, (n, 2))) * np.array([w, h])
+    sigma = np.asarray(rng.uniform(0.0, 1.2, n))
+    streak = np.where(rng.random(n) < 0.4, rng.uniform(2.0, 12.0, n), 0.0)  # motion blur: length in pixels
+    streak_dir = np.asarray(rng.uniform(0, math.pi, n))
+    for i in range(n):
+        s = scale[i]
+        M = np.array([[s, 0, (1 - s) * w / 2 + shift[i, 0]], [0, s, (1 - s) * h / 2 + shift[i, 1]]], np.float32)
+        img = cv2.warpAffine(batch[i], M, (w, h), borderMode=cv2.BORDER_REFLECT)
+        if streak[i]:
+            img = cv2.filter2D(img, -1, _streak(streak[i], streak_dir[i]), borderType=cv2.BORDER_REFLECT)
+        out[i] = cv2.GaussianBlur(img, (0, 0), sigma[i]) if sigma[i] > 0.3 else img
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    glint = np.flatnonzero(rng.random(n) < 0.3)  # small saturated blobs
+    if len(glint):
+        c = rng.uniform((0, 0), (w, h), (len(glint), 2)).astype(np.float32)
+        r = rng.uniform(1.0, 4.0, len(glint)).astype(np.float32)
+        d2 = (xx - c[:, 0, None, None]) ** 2 + (yy - c[:, 1, None, None]) ** 2
+        amp = rng.uniform(0.3, 1.0, len(glint)).astype(np.float32)
+        out[glint] += (amp[:, None, None] * np.exp(-d2 / (2 * r[:, None, None] ** 2)))[..., None]
+    bars = np.flatnonzero(rng.random(n) < 0.2)
+    if len(bars):
+        ang = rng.uniform(0, math.pi, len(bars)).astype(np.float32)
+        off = rng.uniform(-0.4, 0.4, len(bars)).astype(np.float32) * w
+        d = ((xx - w / 2) * np.cos(ang)[:, None, None] + (yy - h / 2) * np.sin(ang)[:, None, None] - off[:, None, None])
+        inside = np.abs(d) < rng.uniform(2.0, 6.0, len(bars)).astype(np.float32)[:, None, None]
+        level = rng.uniform(0.1, 0.7, len(bars)).astype(np.float32)
+        out[bars] = np.where(inside[..., None], level[:, None, None, None], out[bars])
+    gain = np.exp(rng.uniform(math.log(0.15), math.log(1.4), (n, 1, 1, 1)))
+    tint = rng.uniform(0.8, 1.2, (n, 1, 1, 3))
+    gamma = rng.uniform(0.7, 1.4, (n, 1, 1, 1))
+    out = np.clip(out * (gain * tint).astype(np.float32), 0, 1) ** gamma.astype(np.float32)
+    noise = rng.standard_normal(out.shape, dtype=np.float32) * rng.uniform(0.0, 0.04, (n, 1, 1, 1)).astype(np.float32)
+    return (out + noise).astype(np.float32)
+
+
+def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64, seed: int = 0, width: int = 16,
+            dim: int = DIM, extra: np.ndarray | None = None, augmented: bool = True, weights: np.ndarray | None = None,
+            progress: bool = False) -> CropNet:
+    """Train :class:`CropNet` on ``(n, h, w, 3)`` float crops and angles ``Y`` (n, k), standardised
+    here, for ``steps`` mini-batches of augmented crops (the cost does not grow with n); ``extra``
+    ``(n, e)``: inputs joined to the convolutional features (where the box lies in its frame);
+    ``weights`` ``(k,)``: each angle's weight in the loss (default equal)."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    mu, sd = Y.mean(0), Y.std(0) + 1e-9
+    T = torch.from_numpy(((Y - mu) / sd).astype(np.float32))
+    W = torch.from_numpy(np.ones(Y.shape[1], np.float32) if weights is None else np.asarray(weights, np.float32))
+    W = W / W.sum()
+    E = None if extra is None else torch.from_numpy(np.asarray(extra, np.float32))
+    net = CropNet(Y.shape[1], width, dim, (crops.shape[2], crops.shape[1]), 0 if E is None else E.shape[1])
+    opt = torch.optim.AdamW(net.parameters(), lr=3e-3, weight_decay=1e-4)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=3e-3, total_steps=steps)
+    net.train()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=steps, desc="train network", unit="batch", disable=None)
+    order: list[int] = []
+    for _ in range(steps):
+        if len(order) < batch:  # epochs of shuffled crops
+            order += rng.permutation(len(crops)).tolist()
+        idx, order = np.array(order[:batch]), order[batch:]
+        x = torch.from_numpy(standardise(augment(crops[idx], rng) if augmented else crops[idx]))
+        loss = nn.functional.smooth_l1_loss(net(x, None if E is None else E[idx]), T[idx], beta=0.5, reduction="none")
+        loss = (loss * W).sum(1).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.close()
+    return net.eval()
+
+
+def state_arrays(net: CropNet) -> dict[str, np.ndarray]:
+    """The network's weights as NumPy arrays (for a model file)."""
+    return {k: v.detach().cpu().numpy() for k, v in net.state_dict().items()}
+
+
+def from_arrays(arrays: dict[str, np.ndarray], k: int, size: tuple[int, int]) -> CropNet:
+    """A :class:`CropNet` for ``k`` angles and ``size`` crops from :func:`state_arrays`' output;
+    a ``ValueError`` when the arrays do not make one."""
+    try:
+        width = int(arrays["body.0.0.weight"].shape[0])
+        lin = arrays["embed.0.weight"]
+        flat = 4 * width * _cells(size[0]) * _cells(size[1])
+        extra = int(lin.shape[1]) - flat
+        if extra not in (0, VIEWS):
+            raise ValueError(f"the network takes {extra} inputs besides the crop, not 0 or {VIEWS}")
+        net = CropNet(k, width, int(lin.shape[0]), size, extra)
+        net.load_state_dict({n: torch.from_numpy(np.array(a)) for n, a in arrays.items()}, strict=True)
+    except (KeyError, IndexError, RuntimeError, TypeError) as exc:
+        raise ValueError(f"the network's weights do not fit: {str(exc).splitlines()[0]}") from None
+    return net.eval()
+
+
+@torch.no_grad()
+def embed(net: CropNet, crops: np.ndarray, extra: np.ndarray | None = None, batch: int = 512) -> np.ndarray:
+    """``(n, dim)`` features of ``(n, h, w, 3)`` float crops (and their ``extra`` inputs)."""
+    E = None if extra is None else torch.from_numpy(extra.astype(np.float32))
+    parts = [net.features(torch.from_numpy(standardise(crops[s : s + batch])), None if E is None else E[s : s + batch]).numpy()
+             for s in range(0, len(crops), batch)]
+    return np.concatenate(parts) if parts else np.empty((0, net.head.in_features), np.float32)

@@ -1,0 +1,123 @@
+"""The cnn pose feature (a small network trained here, a GP on its feature), box views, the
+covering motion of the renderer."""
+
+import numpy as np
+import pytest
+
+from artmotion.errors import InputError
+from artmotion.pose.data import load_labelled, read_views
+from artmotion.pose.features import box_views
+from artmotion.pose.render import ANGLES, RANGES, cover_script, pose_script, write_dataset
+
+pytest.importorskip("torch")
+
+
+def test_cover_script_covers_the_joint_ranges_evenly_and_moves_smoothly():
+    n = 2000
+    cover = cover_script(n, np.random.default_rng(0))
+    script = pose_script(n, np.random.default_rng(0))
+    lo = np.array([RANGES[a][0] for a in ANGLES])
+    hi = np.array([RANGES[a][1] for a in ANGLES])
+    assert np.all(cover[:, :4] >= lo - 1e-9) and np.all(cover[:, :4] <= hi + 1e-9)
+
+    def empty_cells(traj, bins=4):
+        """Cells of a 4x4 grid over (yaw, opening) and over (pitch, roll) never visited."""
+        u = (traj[:, :4] - lo) / (hi - lo)
+        out = 0
+        for a, b in ((0, 3), (1, 2)):
+            h, _, _ = np.histogram2d(u[:, a], u[:, b], bins=bins, range=[[0, 1], [0, 1]])
+            out += int((h < n / bins**2 / 4).sum())
+        return out
+
+    assert empty_cells(cover) == 0  # every combination visited at least a quarter as often as even coverage
+    assert empty_cells(script) > 0  # the pick-and-place script leaves combinations out
+    step = np.abs(np.diff(cover[:, :4], axis=0)).max(0)
+    assert np.all(step < 0.25 * (hi - lo))  # continuous motion, not a jump per frame
+
+
+def test_box_views_say_where_the_crop_was_in_the_frame(tmp_path):
+    v = box_views([[270, 190, 100, 100], [0, 0, 50, 100]], (640, 480))
+    np.testing.assert_allclose(v[0], [0, 0, 0, np.log(100 / 640)], atol=1e-6)  # centred, square
+    assert v[1, 0] < -1.5 and v[1, 1] < -1 and v[1, 2] < 0  # top left, tall
+    with pytest.raises(InputError):
+        box_views([[0, 0, 0, 10]], (640, 480))
+    crops = tmp_path / "c"
+    crops.mkdir()
+    paths = [crops / "000001.png", crops / "000002.png"]
+    f = tmp_path / "boxes.csv"
+    f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n")
+    with pytest.raises(InputError, match="no box for image '000002.png'"):
+        read_views(f, paths)
+    f.write_text("image,x,y,w,h\n000001.jpg,270,190,100,100\n")
+    with pytest.raises(InputError, match="header"):
+        read_views(f, paths)
+    f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n000002.jpg,1,2,-3,4,640,480\n")
+    with pytest.raises(InputError, match="w"):
+        read_views(f, paths)
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cnn")
+    write_dataset(root / "train", 300, seed=11, motion="cover", scenes=3)
+    write_dataset(root / "test", 60, seed=12)
+    out = {}
+    for k in ("train", "test"):
+        names, paths, imgs, Y = load_labelled(root / k / "crops", root / k / "labels.csv")
+        out[k] = (names, imgs, Y, read_views(root / k / "boxes.csv", paths))
+    return root, out
+
+
+def test_cnn_model_learns_pose_round_trips_and_needs_its_views(rendered, tmp_path):
+    from artmotion.pose.model import PoseRegressor
+
+    root, data = rendered
+    names, imgs, Y, V = data["train"]
+    _, timgs, tY, tV = data["test"]
+    reg = PoseRegressor(feature="cnn", net_steps=150).fit(imgs, Y, names, views=V)
+    assert reg.uses_views_
+    mean, std = reg.predict(timgs, return_std=True, views=tV)
+    assert mean.shape == tY.shape and np.all(std > 0)
+    # after a few seconds of training on 300 crops, the stem's direction (yaw, pitch) is far better
+    # than knowing only the training set's mean pose, and no angle is worse
+    err = np.abs(mean - tY).mean(0)
+    base = np.abs(Y.mean(0) - tY).mean(0)
+    assert np.all(err[:2] < 0.7 * base[:2]) and np.all(err < base), (err, base)
+    with pytest.raises(InputError, match="boxes"):
+        reg.predict(timgs)
+    path = tmp_path / "m.npz"
+    reg.save(path)
+    again = PoseRegressor.load(path)
+    np.testing.assert_allclose(again.predict(timgs, views=tV), mean, atol=1e-6)
+    # a damaged network in the file is a one-line error naming the file
+    with np.load(path) as z:
+        d = {k: z[k] for k in z.files}
+    d["net:embed.0.weight"] = d["net:embed.0.weight"][:, :-1]
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **d)
+    with pytest.raises(InputError, match="bad.npz.*network"):
+        PoseRegressor.load(bad)
+
+
+def test_cli_trains_and_predicts_with_boxes(rendered, run_cli, tmp_path):
+    root, _ = rendered
+    model = tmp_path / "m.npz"
+    code, out, err = run_cli("pose", "train", root / "train" / "crops", root / "train" / "labels.csv", "--model", model,
+                             "--feature", "cnn", "--boxes", root / "train" / "boxes.csv", "--steps", 20)
+    assert code == 0, err
+    pred = tmp_path / "p.csv"
+    code, out, err = run_cli("pose", "predict", model, root / "test" / "crops", "--out", pred,
+                             "--boxes", root / "test" / "boxes.csv", "--smooth")
+    assert code == 0, err
+    assert len(pred.read_text().splitlines()) == 61
+    code, out, err = run_cli("pose", "predict", model, root / "test" / "crops", "--out", tmp_path / "q.csv")
+    assert code == 2 and "--boxes" in err and err.count("\n") == 1 and not (tmp_path / "q.csv").exists()
+    # `artmotion run --pose-model` gives such a model each box's place in its frame
+    import csv
+
+    boxes = list(csv.DictReader(open(root / "test" / "boxes.csv")))
+    det = tmp_path / "det.txt"
+    det.write_text("".join(f"{i},-1,{r['x']},{r['y']},{r['w']},{r['h']},1,-1,-1,-1\n" for i, r in enumerate(boxes, 1)))
+    code, out, err = run_cli("run", root / "test" / "frames", "--det", det, "--class", "tool", "--pose-model", model,
+                             "--out", tmp_path / "run", "--no-video")
+    assert code == 0, err

@@ -89,9 +89,9 @@ def main(argv=None):
     data = {k: load(out, k) for k in RENDERS}
     names = data["normal"][0]
     cols = Columns.from_names(names)
-    both = {i: np.concatenate([data["cover"][i], data["normal"][i]]) if i != 1 else data["cover"][1] + data["normal"][1]
-            for i in (1, 2, 3)}
-    imgs, Y, V = both[1], both[2], both[3]
+    imgs = data["cover"][1] + data["normal"][1]
+    Y = np.concatenate([data["cover"][2], data["normal"][2]])
+    V = np.concatenate([data["cover"][3], data["normal"][3]])
     lines: list[str] = []
     say = lambda s="": (print(s, flush=True), lines.append(s))  # noqa: E731
     results: dict = {}

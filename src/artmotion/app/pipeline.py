@@ -88,12 +88,12 @@ def describe_run(tracks, events, width, height, fps, object_class: str = "person
 def load_pose_model(model_path, column: str | None = None):
     """The pose model and the index of its opening angle (``column``, by default the first
     angle whose name contains "open"); loaded and checked before any long work."""
-    from artmotion.pose.model import PoseRegressor
+    from artmotion.pose.model import PoseRegressor, is_opening
 
     model = PoseRegressor.load(model_path)
     names = model.names_ or []
     if column is None:
-        column = next((n for n in names if "open" in n.lower()), None)
+        column = next((n for n in names if is_opening(n)), None)
     if column not in names:
         raise InputError(f"the pose model has no opening-angle column (angles: {', '.join(names)})", path=model_path)
     return model, names.index(column)
@@ -109,20 +109,21 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> d
     from artmotion.pose.features import box_views
 
     crops: dict[int, list] = {}
+    size = None
     with closing(seq.frames()) as frames:
         for fno, frame in frames:
             for r in tracks[tracks[:, 0] == fno]:
                 x0, y0 = max(int(r[2]), 0), max(int(r[3]), 0)
                 x1, y1 = min(int(r[2] + r[4]), frame.shape[1]), min(int(r[3] + r[5]), frame.shape[0])
                 if x1 - x0 >= 4 and y1 - y0 >= 4:
-                    view = box_views([(x0, y0, x1 - x0, y1 - y0)], (frame.shape[1], frame.shape[0]))[0]
-                    crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy(), view))
+                    crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy(), (x0, y0, x1 - x0, y1 - y0)))
+            size = (frame.shape[1], frame.shape[0])
     out = {}
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
     for tid, items in crops.items():
         if len(items) < min_boxes:
             continue
-        views = np.array([v for _, _, v in items]) if model.uses_views_ else None
+        views = box_views([b for _, _, b in items], size) if model.uses_views_ else None
         mean, std = model.predict([c for _, c, _ in items], return_std=True, views=views)
         mean, _ = model.make_filter(dt).filter(mean, std)
         out[tid] = (np.array([f for f, _, _ in items]), np.asarray(mean)[:, k])

@@ -26,8 +26,6 @@ from artmotion.pose.features import VIEW_DIM
 
 #: width of the feature the GP sees
 DIM = 64
-#: inputs besides the crop when the boxes' places are known (``features.box_views``)
-VIEWS = VIEW_DIM
 
 
 def _block(cin: int, cout: int) -> nn.Sequential:
@@ -181,8 +179,8 @@ def from_arrays(arrays: dict[str, np.ndarray], k: int, size: tuple[int, int]) ->
         lin = arrays["embed.0.weight"]
         flat = 4 * width * _cells(size[0]) * _cells(size[1])
         extra = int(lin.shape[1]) - flat
-        if extra not in (0, VIEWS):
-            raise ValueError(f"the network takes {extra} inputs besides the crop, not 0 or {VIEWS}")
+        if extra not in (0, VIEW_DIM):
+            raise ValueError(f"the network takes {extra} inputs besides the crop, not 0 or {VIEW_DIM}")
         net = CropNet(k, width, int(lin.shape[0]), size, extra)
         net.load_state_dict({n: torch.from_numpy(np.array(a)) for n, a in arrays.items()}, strict=True)
     except (KeyError, IndexError, RuntimeError, TypeError) as exc:

@@ -118,4 +118,4 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
     if missing:
         raise InputError(f"no box for image {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""),
                          path=path)
-    return np.concatenate([box_views([boxes[p.stem]], sizes[p.stem]) for p in images])
+    return box_views([boxes[p.stem] for p in images], [sizes[p.stem] for p in images])

@@ -165,8 +165,9 @@ def pixels_batch(batch: np.ndarray, cell: int = 0) -> np.ndarray:
 VIEW_DIM = 4
 
 
-def box_views(boxes, frame_size: tuple[float, float]) -> np.ndarray:
-    """``(n, 4)`` where boxes ``(x, y, w, h)`` lie in a ``frame_size = (width, height)`` frame:
+def box_views(boxes, frame_size) -> np.ndarray:
+    """``(n, 4)`` where boxes ``(x, y, w, h)`` lie in a ``frame_size = (width, height)`` frame
+    (one size for all boxes, or ``(n, 2)``, one per box):
     the box centre relative to the frame centre (x, y, in frame widths, times 4), the log aspect
     ``log(w / h)`` and the log height in frame widths.
 
@@ -175,9 +176,10 @@ def box_views(boxes, frame_size: tuple[float, float]) -> np.ndarray:
     ray differs by up to ~16° in a 640-px endoscope frame), and the box's shape is part of the
     pose's appearance."""
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    W, H = float(frame_size[0]), float(frame_size[1])
-    if W <= 0 or H <= 0:
-        raise InputError(f"frame size {frame_size} is not positive")
+    size = np.asarray(frame_size, dtype=float).reshape(-1, 2)
+    W, H = size[:, 0], size[:, 1]
+    if not np.all(np.isfinite(size)) or np.any(size <= 0):
+        raise InputError("frame sizes must be positive")
     if not np.all(np.isfinite(b)) or np.any(b[:, 2:] <= 0):
         raise InputError("boxes need finite positions and positive widths and heights")
     cx = (b[:, 0] + b[:, 2] / 2 - W / 2) / W

@@ -28,6 +28,11 @@ VERSION = 2
 CALIBRATE = 0.2
 
 
+def is_opening(name: str) -> bool:
+    """Whether an angle column is the jaw opening (its name contains "open")."""
+    return "open" in name.lower()
+
+
 def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = None) -> np.ndarray:
     """White-noise acceleration variance per column of a time-ordered ``Y`` (``2 var(d2 y) / dt^4``).
 
@@ -211,7 +216,7 @@ class PoseRegressor:
             # optimistic, and so would the variance be
             m = max(3, int(round(len(X) * (1 - CALIBRATE))))
             crops = np.asarray(X[:m], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
-            weights = [self.opening_weight if "open" in n.lower() else 1.0 for n in self.names_]
+            weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
             self.net_ = cnn.fit_net(crops, Y[:m], self.net_steps, seed=self.seed, extra=None if V is None else V[:m],
                                     augmented=self.augment, weights=np.array(weights), progress=self.progress)
         elif self.n_components is not None and self.n_components < min(X.shape):
@@ -242,10 +247,13 @@ class PoseRegressor:
         V = self._check_views(views, len(images))
         if self.net_ is not None:  # the network runs on the whole batch, on torch's threads
             images = self._project(self._as_features(images), V)
+            prepare = None
+        else:
+            prepare = lambda part: self._project(self._as_features(part))  # noqa: E731
 
         def work(s):
             part = images[s : s + batch]
-            return gp.predict(part if self.net_ is not None else self._project(self._as_features(part)), return_std=True)
+            return gp.predict(part if prepare is None else prepare(part), return_std=True)
 
         starts = list(range(0, len(images), batch))
         if len(starts) > 1:

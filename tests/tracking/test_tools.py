@@ -53,6 +53,35 @@ def test_tracker_keeps_one_identity_and_follows_detections():
     assert n[:3] == [1, 1, 1] and n[3:] == [0, 0, 0]
 
 
+@pytest.mark.parametrize("experts", [{"klt": True}, {"klt": False, "flow": True}])
+def test_image_motion_experts_carry_a_head_between_detections(experts):
+    """A textured patch slides over a textured background; after a few detections, KLT or the
+    dense-flow (DIS) expert alone follows it through frames without any (the motion filter alone
+    would coast at its last velocity, and the patch changes direction)."""
+    class NoDetector:
+        def detect(self, frame):
+            return np.zeros((0, 5))
+
+    rng = np.random.default_rng(2)
+    back = cv2.GaussianBlur(rng.integers(0, 255, (144, 192, 3), dtype=np.uint8), (5, 5), 1.0)
+    patch = cv2.GaussianBlur(rng.integers(0, 255, (30, 30, 3), dtype=np.uint8), (3, 3), 0.8)
+
+    def frame_at(x, y):
+        f = back.copy()
+        f[int(y) - 15:int(y) + 15, int(x) - 15:int(x) + 15] = patch
+        return f
+
+    tr = ToolTracker(NoDetector(), coast=20, max_miss=30, camera=False, **experts)
+    path = [(40 + 4 * k, 70) for k in range(8)] + [(68, 70 + 4 * k) for k in range(1, 12)]  # right, then down
+    err = []
+    for k, (x, y) in enumerate(path):
+        dets = np.array([[x, y, 30.0, 0.0, 0.9]]) if k < 5 else np.zeros((0, 5))
+        rows = tr.update(frame_at(x, y), dets)
+        if k >= 5:
+            err.append(math.hypot(rows[0, 1] - x, rows[0, 2] - y))
+    assert max(err) < 6.0, err
+
+
 @pytest.fixture(scope="module")
 def lap_subset(tmp_path_factory):
     root = shared_path("surgical", "lap-tools")

@@ -98,6 +98,9 @@ def run_cmd(
         typer.echo(f"  {s['sentence']}")
     if len(res.sentences) > 10:
         typer.echo(f"  … {len(res.sentences) - 10} more in {res.out_dir / 'sentences.txt'}")
+    if res.pose is not None and not res.pose["applies"]:
+        typer.echo(f"pose model: not said whether anything opens or closes: the {res.pose['crops']} crops are unlike "
+                   f"its training crops (told from the nearest of them with AUC {res.pose['domain_auc']:.2f})")
     if res.metrics:
         m = res.metrics
         typer.echo(f"metrics: MOTA {m['MOTA']:.3f}  IDF1 {m['IDF1']:.3f}  IDS {int(m['IDS'])}"

@@ -44,6 +44,8 @@ class RunResult:
     sentences: list
     metrics: dict | None
     seconds: float
+    #: whether the pose model applied to the run's crops (:func:`track_poses`), if one ran
+    pose: dict | None = None
 
     @property
     def report(self) -> Path:
@@ -99,14 +101,19 @@ def load_pose_model(model_path, column: str | None = None):
     return model, names.index(column)
 
 
-def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
+                ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], dict]:
     """Per track, the Kalman-filtered opening angle (angle ``k`` of the pose ``model``, see
-    :func:`load_pose_model`) over the track's box crops.
+    :func:`load_pose_model`) over the track's box crops, where the model applies.
 
     The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
-    filtered in time (Eq. 3.6-3.7).
+    filtered in time (Eq. 3.6-3.7). First the crops of all tracks are compared with the model's
+    training crops (:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`): when they are
+    another domain (a model trained on renders, a real video), nothing is said about the opening.
+    Returns the angles and ``{"crops", "domain_auc", "applies"}``.
     """
     from artmotion.pose.features import box_views
+    from artmotion.pose.model import FOREIGN_AUC
 
     crops: dict[int, list] = {}
     size = None
@@ -118,16 +125,23 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5) -> d
                 if x1 - x0 >= 4 and y1 - y0 >= 4:
                     crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy(), (x0, y0, x1 - x0, y1 - y0)))
             size = (frame.shape[1], frame.shape[0])
-    out = {}
+    items = [it for tid in sorted(crops) for it in crops[tid]]
+    views = box_views([b for _, _, b in items], size) if model.uses_views_ and items else None
+    auc = model.domain_auc([c for _, c, _ in items], views)
+    info = {"crops": len(items), "domain_auc": None if np.isnan(auc) else round(auc, 3),
+            "applies": not auc >= FOREIGN_AUC}
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    if not info["applies"]:
+        return out, info
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
-    for tid, items in crops.items():
-        if len(items) < min_boxes:
+    for tid, its in crops.items():
+        if len(its) < min_boxes:
             continue
-        views = box_views([b for _, _, b in items], size) if model.uses_views_ else None
-        mean, std = model.predict([c for _, c, _ in items], return_std=True, views=views)
+        views = box_views([b for _, _, b in its], size) if model.uses_views_ else None
+        mean, std = model.predict([c for _, c, _ in its], return_std=True, views=views)
         mean, _ = model.make_filter(dt).filter(mean, std)
-        out[tid] = (np.array([f for f, _, _ in items]), np.asarray(mean)[:, k])
-    return out
+        out[tid] = (np.array([f for f, _, _ in its]), np.asarray(mean)[:, k])
+    return out, info
 
 
 def run_pipeline(
@@ -171,7 +185,8 @@ def run_pipeline(
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run) as dst:
         if tools is not None:
-            manifest, tracks = _run_tools_into(dst, seq, source, fingerprint, tools, object_class, progress, video)
+            manifest, tracks = _run_tools_into(dst, seq, source, fingerprint, tools, object_class, progress, video,
+                                               pose)
         else:
             detection = {"det": det, "detector": detector, "detect_every": detect_every}
             manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress,
@@ -182,7 +197,7 @@ def run_pipeline(
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
-                     manifest["seconds"])
+                     manifest["seconds"], manifest.get("pose"))
 
 
 #: the files of a run folder
@@ -217,7 +232,7 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     result = track(seq, **kwargs)  # the opened sequence: not probed a second time
     tracks = np.asarray(result.tracks, dtype=float).reshape(-1, 10)
     events = list(result.events)
-    poses = track_poses(seq, tracks, *pose) if pose is not None else None
+    poses, pose_info = track_poses(seq, tracks, *pose) if pose is not None else (None, None)
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
     if gt is not None and len(gt):
@@ -226,12 +241,13 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
         metrics = {k: float(v) for k, v in scores.items()} if scores["GT_DETS"] else None
 
     return _write_run(out, seq, source, fingerprint, tracks, events, sentences, metrics, result.detector,
-                      float(result.fps), video), tracks
+                      float(result.fps), video, pose_info), tracks
 
 
 def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, events: list, sentences: list,
-               metrics, detections, fps: float, video: bool) -> dict:
-    """Write a run's files (all but the manifest) into ``out``; return the manifest."""
+               metrics, detections, fps: float, video: bool, pose_info: dict | None = None) -> dict:
+    """Write a run's files (all but the manifest) into ``out``; return the manifest. ``pose_info``:
+    whether the pose model applied to the run's crops (:func:`track_poses`), if one ran."""
     from artmotion.app.report import write_report
 
     write_mot(out / "results.txt", tracks)
@@ -252,15 +268,17 @@ def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, eve
         "sentences": sentences,
         "metrics": metrics,
         "tracking_fps": fps,
+        **({"pose": pose_info} if pose_info is not None else {}),
     }
     write_report(out / "report.html", seq, tracks, manifest)
     return manifest
 
 
 def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_class: str, progress: bool,
-                    video: bool) -> tuple[dict, np.ndarray]:
+                    video: bool, pose) -> tuple[dict, np.ndarray]:
     """:func:`_run_into` for surgical instruments: the tool tracker's heads as tracks (a square of
-    the head's size), entries and exits from the tracks."""
+    the head's size), entries and exits from the tracks, opening and closing from the heads' crops
+    where the pose model applies."""
     from artmotion.language.describe import events_from_tracks
     from artmotion.tracking.instruments.track import to_mot, track_sequence
     from artmotion.tracking.video import write_annotated
@@ -272,11 +290,11 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
     if video:
         write_annotated(out / "annotated.mp4", seq.frames(), tracks, seq.fps, (seq.width, seq.height), events=events)
     subject = "tool" if object_class == "person" else object_class
-    sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=subject)
-    manifest = _write_run(out, seq, source, fingerprint, tracks, events, sentences, None, "tool model", fps, video)
+    poses, pose_info = track_poses(seq, tracks, *pose) if pose is not None else (None, None)
+    sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=subject, poses=poses)
+    manifest = _write_run(out, seq, source, fingerprint, tracks, events, sentences, None, "tool model", fps, video,
+                          pose_info)
     return manifest, tracks
-
-
 
 
 def is_finished(run_dir: str | os.PathLike) -> bool:

@@ -26,6 +26,10 @@ MAGIC = "artmotion-pose-gp"
 VERSION = 2
 #: the last fraction of the training rows on which the GP's variance is calibrated
 CALIBRATE = 0.2
+#: :meth:`PoseRegressor.domain_auc`: least AUC of crops that are not what the model was trained on,
+#: and the fewest crops it judges
+FOREIGN_AUC = 0.9
+DOMAIN_MIN = 100
 
 
 def is_opening(name: str) -> bool:
@@ -270,6 +274,43 @@ class PoseRegressor:
         mean = np.concatenate([p[0] for p in parts]) if parts else np.empty((0, k))
         std = np.concatenate([p[1] for p in parts]) if parts else np.empty((0, k))
         return (mean, std) if return_std else mean
+
+    def domain_auc(self, images, views=None, max_rows: int = 1000) -> float:
+        """How well ``images`` (crops, with their ``views`` if the model uses them) can be told from
+        the training crops nearest to them: 0.5, not at all; 1, always (another domain). NaN for
+        fewer than :data:`DOMAIN_MIN` crops (too few to tell).
+
+        A classifier two-sample test (Lopez-Paz and Oquab 2017) on matched samples: the
+        cross-validated ROC AUC of a logistic regression between the crops' GP inputs and those of
+        their nearest training crops. Matching keeps a video's narrow stretch of motion from being
+        told apart from a broad training set only for being narrow. The GP's own variance cannot
+        say this: a learned feature maps a crop it was never trained on (a real instrument, for a
+        model trained on renders) near training crops, where the variance is small (docs/surgical.md).
+        """
+        from sklearn.linear_model import LogisticRegression
+        from sklearn.metrics import roc_auc_score
+        from sklearn.model_selection import cross_val_predict
+        from sklearn.neighbors import NearestNeighbors
+
+        gp = self.gp_
+        if gp is None:
+            raise RuntimeError("PoseRegressor is not fitted")
+        n = len(images)
+        if n < DOMAIN_MIN:
+            return float("nan")
+        rng = np.random.default_rng(self.seed)
+        pick = np.sort(rng.choice(n, min(n, max_rows), replace=False))
+        V = self._check_views(views, n)
+        Z = self._project(self._as_features([images[i] for i in pick]), None if V is None else V[pick])
+        T = gp.X[np.unique(NearestNeighbors(n_neighbors=1).fit(gp.X).kneighbors(Z)[1].ravel())]
+        A = np.vstack([T, Z])
+        A = (A - A.mean(0)) / (A.std(0) + 1e-9)
+        y = np.r_[np.zeros(len(T)), np.ones(len(Z))]
+        cv = min(5, len(T))
+        if cv < 2:  # every crop's nearest training crop is one and the same
+            return 1.0
+        p = cross_val_predict(LogisticRegression(max_iter=2000), A, y, cv=cv, method="predict_proba")[:, 1]
+        return float(roc_auc_score(y, p))
 
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
         return PoseFilter(self.accel_var_, dt)

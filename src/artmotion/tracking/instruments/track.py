@@ -8,6 +8,9 @@ experts are, frame by frame:
   :func:`~artmotion.tracking.camera.estimate_motion`, with the heads left out);
 * **KLT**: corners around the head followed by pyramidal Lucas-Kanade, checked forward-backward;
   their median displacement moves the head;
+* **dense flow** (optional, off by default: it did not raise the held-out scores, docs/surgical.md):
+  OpenCV's DIS optical flow (medium preset: the fast one reads a small part's motion short), its
+  median over the inner half of the head's window moves the head;
 * **the detector** (:class:`~artmotion.tracking.instruments.detector.ToolDetector`), when one of
   its detections is assigned to the head (Hungarian assignment within a gate).
 
@@ -23,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -49,6 +53,23 @@ class _Head:
     miss: int = 0
 
 
+def _window(h: _Head, r: float, shape: tuple[int, ...]) -> tuple[int, int, int, int] | None:
+    """The window ``x0, y0, x1, y1`` of half-size ``r`` around head ``h`` inside an image of
+    ``shape``; None when less than 6 px of it is inside."""
+    x, y = h.x[:2]
+    r = int(r)
+    x0, y0, x1, y1 = int(max(0, x - r)), int(max(0, y - r)), int(min(shape[1], x + r)), int(min(shape[0], y + r))
+    return (x0, y0, x1, y1) if x1 - x0 >= 6 and y1 - y0 >= 6 else None
+
+
+def _moved(h: _Head, d: np.ndarray) -> Gaussian:
+    """The image-motion expert's opinion from displacements ``d`` ``(n, 2)`` seen in the head's
+    window: their median moves the head, their median spread (+1 px) and 2 px make its std."""
+    med = np.median(d, axis=0)
+    spread = float(np.median(np.linalg.norm(d - med, axis=1))) + 1.0
+    return Gaussian(h.x[:2] + med, np.eye(2) * (spread**2 + 4.0))
+
+
 class ToolTracker:
     """Frame-by-frame tracker of instrument heads; :meth:`update` returns the reported rows
     ``(k, 6)``: track, x, y, size, angle, score.
@@ -58,12 +79,13 @@ class ToolTracker:
     ``birth``: least score of a detection that starts a head; ``coast``/``max_miss``: frames a head
     is reported / kept without a detection; ``merge``: two heads closer than this (px) are one (the
     better established stays), and no head starts that close to another; ``klt``/``camera``: the KLT
-    expert and the camera's motion (off only to measure what they bring).
+    expert and the camera's motion (off only to measure what they bring); ``flow``: the dense-flow
+    (DIS) expert.
     """
 
     def __init__(self, detector, detect_std: float = 4.0, accel: float = 4.0, gate: float = 40.0,
                  birth: float = 0.4, coast: int = 0, max_miss: int = 15, klt: bool = True, merge: float = 15.0,
-                 camera: bool = True):
+                 camera: bool = True, flow: bool = False):
         self.detector = detector
         self.detect_std = detect_std
         self.accel = accel
@@ -74,6 +96,8 @@ class ToolTracker:
         self.klt = klt
         self.merge = merge
         self.camera = camera
+        self.flow = flow
+        self._dis: Any = None  # cv2.DISOpticalFlow, made on first use
         self.heads: list[_Head] = []
         self._next_id = 0
         self._prev: np.ndarray | None = None
@@ -108,14 +132,12 @@ class ToolTracker:
         out: list[Gaussian | None] = [None] * len(self.heads)
         if not self.klt or self._prev is None:
             return out
-        H, W = grey.shape
         seeds = []  # (head, corners in its window): every head's corners go through one LK call each way
         for i, h in enumerate(self.heads):  # before the prediction: the head where it was last frame
-            x, y = h.x[:2]
-            r = int(max(8, 0.5 * h.size))
-            x0, y0, x1, y1 = int(max(0, x - r)), int(max(0, y - r)), int(min(W, x + r)), int(min(H, y + r))
-            if x1 - x0 < 6 or y1 - y0 < 6:
+            win = _window(h, max(8, 0.5 * h.size), grey.shape)
+            if win is None:
                 continue
+            x0, y0, x1, y1 = win
             pts = cv2.goodFeaturesToTrack(self._prev[y0:y1, x0:x1], 20, 0.01, 3, blockSize=3)
             if pts is not None and len(pts) >= 4:
                 seeds.append((i, (pts + np.array([x0, y0], np.float32)).astype(np.float32)))
@@ -132,12 +154,23 @@ class ToolTracker:
         for i, pts in seeds:
             ok, d = good[start:start + len(pts)], moved[start:start + len(pts)]
             start += len(pts)
-            if ok.sum() < 4:
-                continue
-            d = d[ok]
-            med = np.median(d, axis=0)
-            spread = float(np.median(np.linalg.norm(d - med, axis=1))) + 1.0
-            out[i] = Gaussian(self.heads[i].x[:2] + med, np.eye(2) * (spread**2 + 4.0))
+            if ok.sum() >= 4:
+                out[i] = _moved(self.heads[i], d[ok])
+        return out
+
+    def _flow(self, grey: np.ndarray) -> list[Gaussian | None]:
+        out: list[Gaussian | None] = [None] * len(self.heads)
+        if not self.flow or self._prev is None or not self.heads:
+            return out
+        if self._dis is None:
+            # the stubs lack OpenCV's module-level alias of DISOpticalFlow.create
+            self._dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)  # type: ignore[attr-defined]
+        flow = self._dis.calc(self._prev, grey, None)
+        for i, h in enumerate(self.heads):  # the head where it was last frame, as for KLT
+            win = _window(h, max(4, 0.25 * h.size), grey.shape)  # the inner half: the head, not the tissue
+            if win is not None:
+                x0, y0, x1, y1 = win
+                out[i] = _moved(h, flow[y0:y1, x0:x1].reshape(-1, 2))
         return out
 
     # -- one frame
@@ -148,12 +181,13 @@ class ToolTracker:
         D = self.detector.detect(frame) if detections is None else np.asarray(detections, float).reshape(-1, 5)
         A = self._camera(grey)
         klt = self._klt(grey)
+        dense = self._flow(grey)
         self._predict(A)
-        # assignment of detections to heads (distance to the prediction fused with KLT)
+        # assignment of detections to heads (distance to the prediction fused with KLT and flow)
         pri = []
-        for h, g in zip(self.heads, klt):
+        for h, g, f in zip(self.heads, klt, dense):
             motion = Gaussian(h.x[:2].copy(), h.P[:2, :2].copy())
-            pri.append(fuse([motion, g]) or motion)
+            pri.append(fuse([motion, g, f]) or motion)
         assigned: dict[int, int] = {}
         if self.heads and len(D):
             C = np.linalg.norm(np.array([p.mean for p in pri])[:, None, :] - D[None, :, :2], axis=2)
@@ -165,7 +199,7 @@ class ToolTracker:
             if i in assigned:
                 d = D[assigned[i]]
                 det = Gaussian(d[:2].copy(), np.eye(2) * self.detect_std**2)
-            est = fuse([p, det])  # the product of the motion, KLT and detector experts (Eq. 2.3)
+            est = fuse([p, det])  # the product of the motion, KLT, flow and detector experts (Eq. 2.3)
             assert est is not None
             # Kalman update of the motion filter with the fused position as its measurement
             R = est.cov + 1e-6 * np.eye(2)

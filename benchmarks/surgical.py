@@ -1,6 +1,6 @@
 """Surgical instruments (#15): held-out accuracy of `artmotion tool` against OpenCV's CSRT and KCF.
 
-    .venv/bin/python benchmarks/tools.py [--data DIR] [--epochs 30] [--folds 4] [--no-write]
+    .venv/bin/python benchmarks/surgical.py [--data DIR] [--epochs 30] [--folds 4] [--no-write]
 
 The 400 annotated frames are cut into ``--folds`` contiguous blocks. For each block: a detector is
 trained on the other blocks (as ``artmotion tool train`` does) and the block is tracked (as
@@ -11,7 +11,7 @@ held-out results (never on the block itself). The peers, OpenCV's CSRT and
 KCF trackers, are started on the true heads of the block's first frame (a square of the head's
 size around it; a human would have to start them) and follow them through the block. Scores by
 ``artmotion tool eval``'s rules: heads within 15 px (one-to-one), median shaft-angle error,
-identity switches, frames/s. Writes docs/tools.md's table between ``<!-- tools-benchmark -->``.
+identity switches, frames/s. Writes docs/surgical.md's table between ``<!-- tools-benchmark -->``.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ COASTS = (0, 3)
 SETTINGS = [(b, c) for b in BIRTHS for c in COASTS]  # (birth, coast)
 #: components taken out one at a time (the tracker's defaults otherwise)
 ABLATIONS = {"all experts (default)": {}, "without KLT": {"klt": False}, "without the camera's motion": {"camera": False},
-             "without merging heads": {"merge": 0.0}}
+             "without merging heads": {"merge": 0.0}, "with dense flow (DIS), not a default": {"flow": True},
+             "dense flow instead of KLT, not a default": {"flow": True, "klt": False}}
 FLOOR = 0.05  # detections below are dropped; above, they may update the head they are assigned to
 
 
@@ -73,24 +74,66 @@ def peer(kind: str, frames: list[int], imgs: dict, gt: dict) -> tuple[dict, floa
     return evaluate_tools({f: gt[f] for f in frames}, pred, fps=fps), fps
 
 
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def figure(path: Path, block: list[int], imgs: dict, gt: dict, pred: dict, n: int = 4) -> None:
+    """``n`` frames of the block side by side: true heads (white ring, shaft), tracked heads (their
+    track's colour: a dot, the shaft direction, the track number)."""
+    tiles = []
+    for f in block[len(block) // (2 * n)::len(block) // n][:n]:
+        img = imgs[f].copy()
+        for x, y, s, a in gt[f]:
+            cv2.circle(img, (int(x), int(y)), 15, (255, 255, 255), 1, cv2.LINE_AA)
+            cv2.line(img, (int(x), int(y)), (int(x + 1.2 * s * np.cos(a)), int(y + 1.2 * s * np.sin(a))), (255, 255, 255),
+                     1, cv2.LINE_AA)
+        for t, x, y, s, a, _ in pred.get(f, []):
+            colour = [(0, 200, 255), (255, 120, 0), (80, 220, 80), (200, 80, 255)][int(t) % 4]
+            cv2.circle(img, (int(x), int(y)), 4, colour, -1, cv2.LINE_AA)
+            cv2.line(img, (int(x), int(y)), (int(x + s * np.cos(a)), int(y + s * np.sin(a))), colour, 2, cv2.LINE_AA)
+            cv2.putText(img, str(int(t) + 1), (int(x) + 6, int(y) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, colour, 1,
+                        cv2.LINE_AA)
+        cv2.putText(img, f"frame {f}", (6, 280), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+        tiles.append(img)
+    cv2.imwrite(str(path), np.hstack(tiles), [cv2.IMWRITE_JPEG_QUALITY, 85])
+
+
+def fold_detector(a, k: int, frames: list, heads: list) -> ToolDetector:
+    """The detector of fold ``k``: trained here, or loaded from ``--cache`` when an earlier run kept it
+    (its training time is kept beside it)."""
+    path = Path(a.cache, f"fold{k}-{a.epochs}.pt") if a.cache else None
+    if path is not None and path.is_file():
+        det = ToolDetector.load(path)
+        det.train_seconds_ = float(path.with_suffix(".seconds").read_text())
+        return det
+    det = ToolDetector(epochs=a.epochs, threshold=FLOOR)
+    det.fit(frames, heads)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        det.save(path)
+        path.with_suffix(".seconds").write_text(f"{det.train_seconds_}\n")
+    return det
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", default="../shared/data/surgical/lap-tools")
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--folds", type=int, default=4)
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--cache", default=None, help="folder to keep each fold's trained detector in (re-used when present)")
     a = ap.parse_args(argv)
     gt = read_tools_csv(os.path.join(a.data, "tools.csv"))
     frames = sorted(gt)
     imgs = {f: cv2.imread(os.path.join(a.data, "frames", f"{f:06d}.png")) for f in frames}
     blocks = np.array_split(np.array(frames), a.folds)
     held: dict[int, dict] = {}  # fold -> {(birth, coast): result}
+    preds: dict[tuple, dict] = {}  # (fold, birth, coast) -> {frame: rows}
     ablation: dict[str, list] = {}  # component -> results per fold
     train_s = []
     for k, block in enumerate(blocks):
         train = [f for f in frames if f not in set(block.tolist())]
-        det = ToolDetector(epochs=a.epochs, threshold=FLOOR)
-        det.fit([imgs[f] for f in train], [gt[f] for f in train])
+        det = fold_detector(a, k, [imgs[f] for f in train], [gt[f] for f in train])
         train_s.append(det.train_seconds_ * 400 / len(train))
         t0 = time.perf_counter()
         dets = {f: det.detect(imgs[f]) for f in block}
@@ -102,6 +145,7 @@ def main(argv=None) -> int:
             pred = {f: tr.update(imgs[f], dets[f]) for f in block}
             fps = len(block) / (time.perf_counter() - t0 + det_s)
             held[k][birth, coast] = evaluate_tools({f: gt[f] for f in block}, pred, fps=fps)
+            preds[k, birth, coast] = pred
         for name, off in ABLATIONS.items():  # each component off, at the default settings
             tr = ToolTracker(det, **off)
             pred = {f: tr.update(imgs[f], dets[f]) for f in block}
@@ -118,6 +162,8 @@ def main(argv=None) -> int:
         thr = max(SETTINGS, key=lambda t: np.mean([f1(held[j][t]) for j in others]))
         r = held[k][thr]
         tot["ours"].append(r)
+        if k == len(blocks) - 1 and not a.no_write:  # the last block: trained on the frames before it
+            figure(DOCS / "surgical.jpg", [int(f) for f in block], imgs, gt, preds[(k, *thr)])
         rows = [("artmotion tool track", f"{thr[0]}, {thr[1]}", r)]
         for kind in ("csrt", "kcf"):
             pr, _ = peer(kind, [int(f) for f in block], imgs, gt)
@@ -131,19 +177,23 @@ def main(argv=None) -> int:
         rs = tot[key]
         rec, prec = pooled(rs)
         lines.append(f"| **all, held out** | {name} | | **{rec:.3f}** | {prec:.3f} | | {sum(r['id_switches'] for r in rs)} | |")
-    lines += ["", "Ablation (tracker defaults, each component taken out; all four blocks held out):", "",
+    lines += ["", "Ablation (tracker defaults, each component taken out or added; all four blocks held out):", "",
               "| tracker | recall | precision | ID switches |", "|---|---|---|---|"]
     for name, rs in ablation.items():
         rec, prec = pooled(rs)
         lines.append(f"| {name} | {rec:.3f} | {prec:.3f} | {sum(r['id_switches'] for r in rs)} |")
-    best = max(SETTINGS, key=lambda t: np.mean([f1(held[j][t]) for j in held]))
-    lines += ["", f"Chosen on all four blocks (the default): birth {best[0]}, coast {best[1]}.",
+    mean_f1 = {t: float(np.mean([f1(held[j][t]) for j in held])) for t in SETTINGS}
+    best = max(SETTINGS, key=mean_f1.get)
+    default = ToolTracker(None)
+    lines += ["", f"Best on all four blocks: birth {best[0]}, coast {best[1]} (mean F1 {mean_f1[best]:.3f}); the "
+              f"tracker's default: birth {default.birth}, coast {default.coast} (mean F1 "
+              f"{mean_f1.get((default.birth, default.coast), float('nan')):.3f}).",
               "", f"Training: {np.mean(train_s):.0f} s for 400 frames ({a.epochs} epochs; measured on "
               f"{len(frames) - len(blocks[0])} and scaled), 2 cores."]
     text = "\n".join(lines)
     print(text)
     if not a.no_write:
-        replace_block(Path(__file__).resolve().parents[1] / "docs" / "tools.md", "tools-benchmark", text)
+        replace_block(DOCS / "surgical.md", "tools-benchmark", text)
     return 0
 
 

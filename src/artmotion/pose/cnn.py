@@ -188,7 +188,7 @@ def from_arrays(arrays: dict[str, np.ndarray], k: int, size: tuple[int, int]) ->
     return net.eval()
 
 
-@torch.no_grad()
+@torch.inference_mode()
 def embed(net: CropNet, crops: np.ndarray, extra: np.ndarray | None = None, batch: int = 512) -> np.ndarray:
     """``(n, dim)`` features of ``(n, h, w, 3)`` float crops (and their ``extra`` inputs)."""
     E = None if extra is None else torch.from_numpy(extra.astype(np.float32))

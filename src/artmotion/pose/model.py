@@ -8,6 +8,8 @@ return_std=True)`` gives the mean and the predictive standard deviation of every
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,6 +32,15 @@ CALIBRATE = 0.2
 #: and the fewest crops it judges
 FOREIGN_AUC = 0.9
 DOMAIN_MIN = 100
+
+
+@functools.cache
+def _threads():
+    """threadpoolctl's view of the loaded thread pools, made once: ``threadpool_limits`` looks
+    them all up again on every call (2 ms with torch loaded, longer than a frame's prediction)."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
 
 
 def is_opening(name: str) -> bool:
@@ -263,13 +274,15 @@ class PoseRegressor:
         if len(starts) > 1:
             from concurrent.futures import ThreadPoolExecutor
 
-            from threadpoolctl import threadpool_limits
-
             # one BLAS thread per worker: the pool already uses the cores (1.3-1.4x faster here)
-            with threadpool_limits(1), ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+            with _threads().limit(limits=1), ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
                 parts = list(pool.map(work, starts))
         else:
-            parts = [work(s) for s in starts]
+            # one chunk. Right after the network, torch's OpenMP threads still spin on the cores and
+            # a multi-threaded BLAS call fights them (one frame took 9-12 ms instead of 1.6): one BLAS
+            # thread then. Without a network BLAS keeps its threads (one HOG frame 0.8 ms, not 1.2).
+            with _threads().limit(limits=1, user_api="blas") if self.net_ is not None else contextlib.nullcontext():
+                parts = [work(s) for s in starts]
         k = len(self.names_)
         mean = np.concatenate([p[0] for p in parts]) if parts else np.empty((0, k))
         std = np.concatenate([p[1] for p in parts]) if parts else np.empty((0, k))

@@ -100,6 +100,17 @@ def test_train_predict_end_to_end(split, run_cli, tmp_path):
     assert code == 0, err
     _, _, S = read_labels(tmp_path / "s.csv")
     assert not np.allclose(S[:, 0::2], mean)
+    # crops unlike the training crops get a note (the domain test needs at least 100 crops); the
+    # training crops themselves do not
+    noise = tmp_path / "noise"
+    noise.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(120):
+        cv2.imwrite(str(noise / f"{i:04d}.png"), cv2.GaussianBlur(rng.integers(0, 255, (60, 48, 3), np.uint8), (5, 5), 2))
+    code, out, err = run_cli("pose", "predict", model, noise, "--out", tmp_path / "n.csv")
+    assert code == 0 and "unlike the model's training crops" in out, (out, err)
+    code, out, err = run_cli("pose", "predict", model, split / "train", "--out", tmp_path / "t.csv")
+    assert code == 0 and "unlike" not in out, out
 
 
 def test_python_api_lbp_and_model_roundtrip(split, tmp_path):

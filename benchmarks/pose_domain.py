@@ -24,7 +24,7 @@ from _docs import replace_block
 
 from artmotion.pose.data import read_views
 from artmotion.pose.features import box_views
-from artmotion.pose.model import FOREIGN_AUC, PoseRegressor
+from artmotion.pose.model import PoseRegressor, is_foreign
 from artmotion.tracking.instruments.annotations import read_tools_csv
 
 
@@ -66,10 +66,12 @@ def main(argv=None) -> int:
             whole = m.domain_auc(crops, v)
             span = []
             for w in (100, 300):
-                aucs = [m.domain_auc(crops[s:s + w], None if v is None else v[s:s + w]) for s in range(0, len(crops) - w + 1, w)]
-                span.append(f"{min(aucs):.2f}–{max(aucs):.2f}")
+                aucs = [a for a in (m.domain_auc(crops[s:s + w], None if v is None else v[s:s + w])
+                                    for s in range(0, len(crops) - w + 1, w)) if not np.isnan(a)]
+                span.append(f"{min(aucs):.2f}–{max(aucs):.2f}" if aucs else "—")
+            said = "yes (not judged)" if np.isnan(whole) else "no" if is_foreign(whole) else "yes"
             lines.append(f"| {m.feature} ({path.name}) | {name} | {len(crops)} | {whole:.2f} | {span[0]} | {span[1]} | "
-                         f"{'yes' if not whole >= FOREIGN_AUC else 'no'} |")
+                         f"{said} |")
             print(lines[-1], flush=True)
     text = "\n".join(lines)
     print(text)

@@ -17,6 +17,7 @@ identity switches, frames/s. Writes docs/surgical.md's table between ``<!-- tool
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import sys
 import time
@@ -99,9 +100,12 @@ def figure(path: Path, block: list[int], imgs: dict, gt: dict, pred: dict, n: in
 
 
 def fold_detector(a, k: int, frames: list, heads: list) -> ToolDetector:
-    """The detector of fold ``k``: trained here, or loaded from ``--cache`` when an earlier run kept it
-    (its training time is kept beside it)."""
-    path = Path(a.cache, f"fold{k}-{a.epochs}.pt") if a.cache else None
+    """The detector of fold ``k``: trained here, or loaded from ``--cache`` when an earlier run with the
+    same folds, epochs, threshold and annotations kept it (its training time is kept beside it). The
+    frames are not in the key: the same annotations with other frames would be another data set."""
+    # the key names everything the detector depends on: a detector of other folds or data never returns
+    key = hashlib.sha1(Path(a.data, "tools.csv").read_bytes()).hexdigest()[:10]
+    path = Path(a.cache, f"fold{k}of{a.folds}-e{a.epochs}-t{FLOOR}-{key}.pt") if a.cache else None
     if path is not None and path.is_file():
         det = ToolDetector.load(path)
         det.train_seconds_ = float(path.with_suffix(".seconds").read_text())

@@ -34,7 +34,7 @@ def test_run_with_pose_model_says_when_the_tool_opens_and_closes(tmp_path, run_c
     assert code == 0, err
     # another render of the same tool: the model applies
     pose = json.loads((tmp_path / "run" / "run.json").read_text())["pose"]
-    assert pose["applies"] and pose["crops"] == 120 and pose["domain_auc"] < 0.9, pose
+    assert pose["applies"] and pose["judged"] and pose["crops"] == 120 and pose["domain_auc"] < 0.9, pose
     said = [(int(line.split("frame ")[-1].rstrip(").")), "opens" if " opens " in line else "closes")
             for line in (tmp_path / "run" / "sentences.txt").read_text().splitlines()
             if line.startswith("Tool 1 opens") or line.startswith("Tool 1 closes")]
@@ -78,6 +78,6 @@ def test_a_pose_model_of_renders_says_nothing_about_real_instruments(tmp_path, r
     run = json.loads((tmp_path / "run" / "run.json").read_text())
     assert run["detections"] == "tool model" and run["track_summary"]
     pose = run["pose"]
-    assert not pose["applies"] and pose["domain_auc"] >= 0.9, pose
+    assert not pose["applies"] and pose["judged"] and pose["domain_auc"] >= 0.9, pose
     assert not any(s["verb"] in ("opens", "closes") for s in run["sentences"])
     assert "pose model: not said whether anything opens or closes" in out

@@ -4,10 +4,12 @@ import shutil
 import cv2
 import numpy as np
 import pytest
+from conftest import shared_path
 
 from artmotion.pose.data import read_labels
 from artmotion.pose.evaluate import orientation_error
 from artmotion.pose.render import write_dataset
+from artmotion.tracking.instruments.annotations import read_tools_csv
 
 N = 240
 
@@ -100,14 +102,18 @@ def test_train_predict_end_to_end(split, run_cli, tmp_path):
     assert code == 0, err
     _, _, S = read_labels(tmp_path / "s.csv")
     assert not np.allclose(S[:, 0::2], mean)
-    # crops unlike the training crops get a note (the domain test needs at least 100 crops); the
-    # training crops themselves do not
-    noise = tmp_path / "noise"
-    noise.mkdir()
-    rng = np.random.default_rng(0)
-    for i in range(120):
-        cv2.imwrite(str(noise / f"{i:04d}.png"), cv2.GaussianBlur(rng.integers(0, 255, (60, 48, 3), np.uint8), (5, 5), 2))
-    code, out, err = run_cli("pose", "predict", model, noise, "--out", tmp_path / "n.csv")
+    # crops unlike the training crops (real instruments) get a note (the domain test needs at least
+    # 100 crops); the training crops themselves do not
+    real = tmp_path / "real"
+    real.mkdir()
+    root = shared_path("surgical", "lap-tools")
+    heads = read_tools_csv(root / "tools.csv")
+    for f in sorted(heads)[:80]:
+        img = cv2.imread(str(root / "frames" / f"{f:06d}.png"))
+        for j, (x, y, s, _a) in enumerate(heads[f]):
+            x0, y0 = int(max(0, x - s / 2)), int(max(0, y - s / 2))
+            cv2.imwrite(str(real / f"{f}_{j}.png"), img[y0:int(y + s / 2), x0:int(x + s / 2)])
+    code, out, err = run_cli("pose", "predict", model, real, "--out", tmp_path / "n.csv")
     assert code == 0 and "unlike the model's training crops" in out, (out, err)
     code, out, err = run_cli("pose", "predict", model, split / "train", "--out", tmp_path / "t.csv")
     assert code == 0 and "unlike" not in out, out

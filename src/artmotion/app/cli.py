@@ -101,6 +101,9 @@ def run_cmd(
     if res.pose is not None and not res.pose["applies"]:
         typer.echo(f"pose model: not said whether anything opens or closes: the {res.pose['crops']} crops are unlike "
                    f"its training crops (told from the nearest of them with AUC {res.pose['domain_auc']:.2f})")
+    elif res.pose is not None and not res.pose["judged"]:
+        typer.echo(f"pose model: applied without knowing whether the {res.pose['crops']} crops are like its training "
+                   f"crops (too few to tell)")
     if res.metrics:
         m = res.metrics
         typer.echo(f"metrics: MOTA {m['MOTA']:.3f}  IDF1 {m['IDF1']:.3f}  IDS {int(m['IDS'])}"

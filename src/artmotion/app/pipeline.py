@@ -110,10 +110,11 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     filtered in time (Eq. 3.6-3.7). First the crops of all tracks are compared with the model's
     training crops (:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`): when they are
     another domain (a model trained on renders, a real video), nothing is said about the opening.
-    Returns the angles and ``{"crops", "domain_auc", "applies"}``.
+    Returns the angles and ``{"crops", "domain_auc", "judged", "applies"}`` (not judged: too few
+    crops to tell; the model is then applied).
     """
     from artmotion.pose.features import box_views
-    from artmotion.pose.model import FOREIGN_AUC
+    from artmotion.pose.model import is_foreign
 
     crops: dict[int, list] = {}
     size = None
@@ -128,8 +129,9 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     items = [it for tid in sorted(crops) for it in crops[tid]]
     views = box_views([b for _, _, b in items], size) if model.uses_views_ and items else None
     auc = model.domain_auc([c for _, c, _ in items], views)
-    info = {"crops": len(items), "domain_auc": None if np.isnan(auc) else round(auc, 3),
-            "applies": not auc >= FOREIGN_AUC}
+    judged = not np.isnan(auc)
+    info = {"crops": len(items), "domain_auc": round(auc, 3) if judged else None, "judged": judged,
+            "applies": not is_foreign(auc)}
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     if not info["applies"]:
         return out, info

@@ -102,7 +102,7 @@ def predict_cmd(
 ):
     """Predict every angle (mean and standard deviation, degrees) of each crop."""
     from artmotion.pose.data import list_images, read_images, write_predictions
-    from artmotion.pose.model import FOREIGN_AUC, PoseRegressor
+    from artmotion.pose.model import PoseRegressor, is_foreign
 
     reg = PoseRegressor.load(model)
     paths = list_images(images)
@@ -120,8 +120,8 @@ def predict_cmd(
     typer.echo(f"predicted {len(paths)} crops ({len(paths) / max(dt, 1e-9):.0f} frames/s"
                f"{', Kalman-smoothed' if smooth else ''}) -> {out}")
     auc = reg.domain_auc(imgs, views)
-    if auc >= FOREIGN_AUC:
-        typer.echo(f"note: these crops are unlike the model's training crops (told from the nearest of them with "
+    if is_foreign(auc):
+        typer.echo(f"note: the crops are unlike the model's training crops (told from the nearest of them with "
                    f"AUC {auc:.2f}; docs/surgical.md): its angles may be far off")
 
 

@@ -29,15 +29,24 @@ VERSION = 2
 #: the last fraction of the training rows on which the GP's variance is calibrated
 CALIBRATE = 0.2
 #: :meth:`PoseRegressor.domain_auc`: least AUC of crops that are not what the model was trained on,
-#: and the fewest crops it judges
+#: the fewest crops it judges
 FOREIGN_AUC = 0.9
 DOMAIN_MIN = 100
+#: the fewest distinct nearest training crops it judges by
+DOMAIN_DISTINCT = 10
+
+
+def is_foreign(auc: float) -> bool:
+    """Whether :meth:`PoseRegressor.domain_auc` says the crops are not what the model was trained
+    on (NaN, not judged: no)."""
+    return bool(auc >= FOREIGN_AUC)
 
 
 @functools.cache
 def _threads():
     """threadpoolctl's view of the loaded thread pools, made once: ``threadpool_limits`` looks
-    them all up again on every call (2 ms with torch loaded, longer than a frame's prediction)."""
+    them all up again on every call (2 ms with torch loaded, longer than a frame's prediction).
+    Only BLAS is limited through it; the BLAS libraries are loaded with NumPy, before it is made."""
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
@@ -275,12 +284,14 @@ class PoseRegressor:
             from concurrent.futures import ThreadPoolExecutor
 
             # one BLAS thread per worker: the pool already uses the cores (1.3-1.4x faster here)
-            with _threads().limit(limits=1), ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+            with _threads().limit(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
                 parts = list(pool.map(work, starts))
         else:
             # one chunk. Right after the network, torch's OpenMP threads still spin on the cores and
-            # a multi-threaded BLAS call fights them (one frame took 9-12 ms instead of 1.6): one BLAS
-            # thread then. Without a network BLAS keeps its threads (one HOG frame 0.8 ms, not 1.2).
+            # a multi-threaded BLAS call fights them: one BLAS thread then (per crop, for calls of 1,
+            # 8, 64 and 256 crops: 1.2-1.5, 0.56-0.64, 0.26-0.27, 0.26-0.27 ms against 8.0-8.8, 1.0,
+            # 0.29-0.31, 0.31-0.32 without). Without a network BLAS keeps its threads (one HOG frame
+            # 0.8 ms, not 1.2).
             with _threads().limit(limits=1, user_api="blas") if self.net_ is not None else contextlib.nullcontext():
                 parts = [work(s) for s in starts]
         k = len(self.names_)
@@ -289,9 +300,12 @@ class PoseRegressor:
         return (mean, std) if return_std else mean
 
     def domain_auc(self, images, views=None, max_rows: int = 1000) -> float:
-        """How well ``images`` (crops, with their ``views`` if the model uses them) can be told from
-        the training crops nearest to them: 0.5, not at all; 1, always (another domain). NaN for
-        fewer than :data:`DOMAIN_MIN` crops (too few to tell).
+        """How well ``images`` (crops or a feature matrix, with their ``views`` if the model uses
+        them) can be told from the training crops nearest to them: about 0.5 or below, not at all
+        (alike); 1, always (another domain; :func:`is_foreign`). NaN when there is too little to
+        judge: fewer than :data:`DOMAIN_MIN` crops, or fewer than :data:`DOMAIN_DISTINCT` distinct
+        training crops nearest to them (an instrument held still; or crops of another look that
+        all fall near a few training crops, which this test cannot tell).
 
         A classifier two-sample test (Lopez-Paz and Oquab 2017) on matched samples: the
         cross-validated ROC AUC of a logistic regression between the crops' GP inputs and those of
@@ -309,20 +323,20 @@ class PoseRegressor:
         if gp is None:
             raise RuntimeError("PoseRegressor is not fitted")
         n = len(images)
+        V = self._check_views(views, n)
         if n < DOMAIN_MIN:
             return float("nan")
         rng = np.random.default_rng(self.seed)
         pick = np.sort(rng.choice(n, min(n, max_rows), replace=False))
-        V = self._check_views(views, n)
-        Z = self._project(self._as_features([images[i] for i in pick]), None if V is None else V[pick])
+        some = images[pick] if isinstance(images, np.ndarray) else [images[i] for i in pick]
+        Z = self._project(self._as_features(some), None if V is None else V[pick])
         T = gp.X[np.unique(NearestNeighbors(n_neighbors=1).fit(gp.X).kneighbors(Z)[1].ravel())]
+        if len(T) < DOMAIN_DISTINCT:  # a handful of points is told apart from anything in many dimensions
+            return float("nan")
         A = np.vstack([T, Z])
         A = (A - A.mean(0)) / (A.std(0) + 1e-9)
         y = np.r_[np.zeros(len(T)), np.ones(len(Z))]
-        cv = min(5, len(T))
-        if cv < 2:  # every crop's nearest training crop is one and the same
-            return 1.0
-        p = cross_val_predict(LogisticRegression(max_iter=2000), A, y, cv=cv, method="predict_proba")[:, 1]
+        p = cross_val_predict(LogisticRegression(max_iter=2000), A, y, cv=5, method="predict_proba")[:, 1]
         return float(roc_auc_score(y, p))
 
     def make_filter(self, dt: float = 1.0) -> PoseFilter:

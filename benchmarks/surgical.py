@@ -1,6 +1,6 @@
 """Surgical instruments (#15): held-out accuracy of `artmotion tool` against OpenCV's CSRT and KCF.
 
-    .venv/bin/python benchmarks/surgical.py [--data DIR] [--epochs 30] [--folds 4] [--no-write]
+    .venv/bin/python benchmarks/surgical.py [--data DIR] [--epochs 30] [--folds 4] [--cache DIR] [--no-write]
 
 The 400 annotated frames are cut into ``--folds`` contiguous blocks. For each block: a detector is
 trained on the other blocks (as ``artmotion tool train`` does) and the block is tracked (as
@@ -11,7 +11,10 @@ held-out results (never on the block itself). The peers, OpenCV's CSRT and
 KCF trackers, are started on the true heads of the block's first frame (a square of the head's
 size around it; a human would have to start them) and follow them through the block. Scores by
 ``artmotion tool eval``'s rules: heads within 15 px (one-to-one), median shaft-angle error,
-identity switches, frames/s. Writes docs/surgical.md's table between ``<!-- tools-benchmark -->``.
+identity switches, frames/s. The last block is the issue's split (trained on the 300 frames before
+it); its tracked frames are drawn into docs/surgical.jpg. Each component of the tracker is then
+taken out (or the dense-flow expert added) at the defaults. Writes docs/surgical.md's table between
+``<!-- tools-benchmark -->``.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ from conftest import shared_path
 
 from artmotion.errors import InputError
 from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv
-from artmotion.tracking.instruments.detector import ToolDetector, _augment
+from artmotion.tracking.instruments.detector import ToolDetector, _augment, scale_to
 from artmotion.tracking.instruments.track import ToolTracker
 
 pytest.importorskip("torch")
@@ -149,6 +149,25 @@ def test_trained_detector_finds_heads_on_frames_it_saw(lap_subset):
             total += 1
             hit += bool(len(D)) and float(np.min(np.hypot(D[:, 0] - x, D[:, 1] - y))) <= 15
     assert hit / total > 0.5
+    # the same frames at twice the size: brought back to the training size, the heads found in
+    # the big frames' pixels (without the scaling the network sees instruments twice the size it learnt)
+    big_hit = 0
+    for img, f in zip(imgs, frames):
+        D = det.detect(cv2.resize(img, None, fx=2, fy=2, interpolation=cv2.INTER_LINEAR))
+        for x, y, *_ in gt[f]:
+            big_hit += bool(len(D)) and float(np.min(np.hypot(D[:, 0] - 2 * x, D[:, 1] - 2 * y))) <= 30
+    assert big_hit >= 0.9 * hit
+    # the tracker's pixel settings follow the video's size
+    tr = ToolTracker(det)
+    tr.update(cv2.resize(imgs[0], None, fx=2, fy=2))
+    assert tr._px == pytest.approx(2.0)
+
+
+def test_scale_to():
+    assert scale_to((288, 384), (288, 384)) == 1.0
+    assert scale_to((288, 384), (290, 390)) == 1.0  # a few pixels are no other scale
+    assert scale_to((288, 384), (576, 768)) == pytest.approx(0.5)
+    assert scale_to((288, 384), (720, 1280)) == pytest.approx((288 * 384 / (720 * 1280)) ** 0.5)
 
 
 def test_events_from_tracks():

@@ -26,6 +26,13 @@ __all__ = ["ToolDetector", "need_torch"]
 _FORMAT = "artmotion-tool-detector-1"
 
 
+def scale_to(trained: tuple[int, int], frame: tuple[int, int], tolerance: float = 0.05) -> float:
+    """The factor that brings a ``frame`` (h, w) to the area of the ``trained`` frames (h, w), aspect
+    kept; 1 within ``tolerance`` (a few pixels of another crop of the same video are no other scale)."""
+    f = math.sqrt(trained[0] * trained[1] / (frame[0] * frame[1]))
+    return 1.0 if abs(f - 1.0) <= tolerance else f
+
+
 def need_torch() -> None:
     """An :class:`InputError` saying how to install PyTorch when it is missing (the ``tools`` extra)."""
     need_package("torch", "tools", "the tool commands")
@@ -110,7 +117,13 @@ class ToolDetector:
         return self.detect_batch([frame])[0]
 
     def detect_batch(self, frames: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """:meth:`detect` on several frames of one size at once."""
+        """:meth:`detect` on several frames of one size at once.
+
+        Frames of another size than the training frames are first scaled (aspect kept) to the
+        training frames' area, so that instruments appear at the size the network learnt (a video
+        of the same operation at 768x576 for a model trained at 384x288); positions and sizes are
+        given back in the frame's own pixels."""
+        import cv2
         import torch
 
         from artmotion.tracking.instruments import net
@@ -118,9 +131,21 @@ class ToolDetector:
         self._check_fitted()
         if not frames:
             return []
+        h, w = frames[0].shape[:2]
+        f = scale_to(self.frame_shape_, (h, w))
+        if f != 1.0:
+            size = (max(2 * net.STRIDE, round(w * f)), max(2 * net.STRIDE, round(h * f)))
+            frames = [cv2.resize(im, size, interpolation=cv2.INTER_AREA if f < 1 else cv2.INTER_LINEAR) for im in frames]
+            fx, fy = size[0] / w, size[1] / h
         with torch.inference_mode():
             maps = self.model_(net.to_tensor(list(frames))).numpy()
-        return [net.decode(m, self.threshold, self.max_heads) for m in maps]
+        out = [net.decode(m, self.threshold, self.max_heads) for m in maps]
+        if f != 1.0:
+            for d in out:
+                d[:, 0] /= fx
+                d[:, 1] /= fy
+                d[:, 2] /= math.sqrt(fx * fy)
+        return out
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:

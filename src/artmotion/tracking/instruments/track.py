@@ -34,6 +34,7 @@ import numpy as np
 from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
+from artmotion.tracking.instruments.detector import scale_to
 from artmotion.tracking.pote import fuse
 
 __all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]
@@ -62,17 +63,22 @@ def _window(h: _Head, r: float, shape: tuple[int, ...]) -> tuple[int, int, int, 
     return (x0, y0, x1, y1) if x1 - x0 >= 6 and y1 - y0 >= 6 else None
 
 
-def _moved(h: _Head, d: np.ndarray) -> Gaussian:
+def _moved(h: _Head, d: np.ndarray, px: float = 1.0) -> Gaussian:
     """The image-motion expert's opinion from displacements ``d`` ``(n, 2)`` seen in the head's
-    window: their median moves the head, their median spread (+1 px) and 2 px make its std."""
+    window: their median moves the head, their median spread (+1 px) and 2 px make its std (``px``:
+    pixels per pixel of the training frames)."""
     med = np.median(d, axis=0)
-    spread = float(np.median(np.linalg.norm(d - med, axis=1))) + 1.0
-    return Gaussian(h.x[:2] + med, np.eye(2) * (spread**2 + 4.0))
+    spread = float(np.median(np.linalg.norm(d - med, axis=1))) + px
+    return Gaussian(h.x[:2] + med, np.eye(2) * (spread**2 + 4.0 * px * px))
 
 
 class ToolTracker:
     """Frame-by-frame tracker of instrument heads; :meth:`update` returns the reported rows
     ``(k, 6)``: track, x, y, size, angle, score.
+
+    Pixel settings (``detect_std``, ``accel``, ``gate``, ``merge``, the experts' windows) are in pixels
+    of the detector's training frames; a video of another size scales them by its size (as the
+    detector scales the frames, :func:`~artmotion.tracking.instruments.detector.scale_to`).
 
     ``detect_std``: the detector's position error (px); ``accel``: the heads' acceleration noise
     (px / frame^2); ``gate``: largest distance (px) of a detection to a head's prediction;
@@ -98,6 +104,7 @@ class ToolTracker:
         self.camera = camera
         self.flow = flow
         self._dis: Any = None  # cv2.DISOpticalFlow, made on first use
+        self._px = 1.0  # pixels of this video per pixel of the detector's training frames (first frame)
         self.heads: list[_Head] = []
         self._next_id = 0
         self._prev: np.ndarray | None = None
@@ -114,7 +121,7 @@ class ToolTracker:
     def _predict(self, A: np.ndarray | None):
         F = np.eye(4)
         F[0, 2] = F[1, 3] = 1.0
-        q = self.accel**2
+        q = (self.accel * self._px) ** 2
         Q = q * np.array([[0.25, 0, 0.5, 0], [0, 0.25, 0, 0.5], [0.5, 0, 1, 0], [0, 0.5, 0, 1]])
         for h in self.heads:
             if A is not None:  # the camera carries the head: position by A, velocity by its linear part
@@ -134,7 +141,7 @@ class ToolTracker:
             return out
         seeds = []  # (head, corners in its window): every head's corners go through one LK call each way
         for i, h in enumerate(self.heads):  # before the prediction: the head where it was last frame
-            win = _window(h, max(8, 0.5 * h.size), grey.shape)
+            win = _window(h, max(8 * self._px, 0.5 * h.size), grey.shape)
             if win is None:
                 continue
             x0, y0, x1, y1 = win
@@ -155,7 +162,7 @@ class ToolTracker:
             ok, d = good[start:start + len(pts)], moved[start:start + len(pts)]
             start += len(pts)
             if ok.sum() >= 4:
-                out[i] = _moved(self.heads[i], d[ok])
+                out[i] = _moved(self.heads[i], d[ok], self._px)
         return out
 
     def _flow(self, grey: np.ndarray) -> list[Gaussian | None]:
@@ -167,10 +174,10 @@ class ToolTracker:
             self._dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)  # type: ignore[attr-defined]
         flow = self._dis.calc(self._prev, grey, None)
         for i, h in enumerate(self.heads):  # the head where it was last frame, as for KLT
-            win = _window(h, max(4, 0.25 * h.size), grey.shape)  # the inner half: the head, not the tissue
+            win = _window(h, max(4 * self._px, 0.25 * h.size), grey.shape)  # the inner half: the head, not the tissue
             if win is not None:
                 x0, y0, x1, y1 = win
-                out[i] = _moved(h, flow[y0:y1, x0:x1].reshape(-1, 2))
+                out[i] = _moved(h, flow[y0:y1, x0:x1].reshape(-1, 2), self._px)
         return out
 
     # -- one frame
@@ -178,6 +185,9 @@ class ToolTracker:
         """Track into BGR ``frame``; ``detections`` ``(k, 5)`` (x, y, size, angle, score) or None to run
         the detector. Returns the reported heads ``(k, 6)``: track, x, y, size, angle, score."""
         grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        if self._prev is None:  # the pixel settings are in the training frames' pixels: this video's scale
+            trained = getattr(self.detector, "frame_shape_", None)
+            self._px = 1.0 if trained is None else 1.0 / scale_to(trained, grey.shape[:2])
         D = self.detector.detect(frame) if detections is None else np.asarray(detections, float).reshape(-1, 5)
         A = self._camera(grey)
         klt = self._klt(grey)
@@ -191,14 +201,14 @@ class ToolTracker:
         assigned: dict[int, int] = {}
         if self.heads and len(D):
             C = np.linalg.norm(np.array([p.mean for p in pri])[:, None, :] - D[None, :, :2], axis=2)
-            assigned = dict(assign(np.where(C <= self.gate, C, INF)))
+            assigned = dict(assign(np.where(C <= self.gate * self._px, C, INF)))
         used = set(assigned.values())
         keep = []
         for i, (h, p) in enumerate(zip(self.heads, pri)):
             det = None
             if i in assigned:
                 d = D[assigned[i]]
-                det = Gaussian(d[:2].copy(), np.eye(2) * self.detect_std**2)
+                det = Gaussian(d[:2].copy(), np.eye(2) * (self.detect_std * self._px) ** 2)
             est = fuse([p, det])  # the product of the motion, KLT, flow and detector experts (Eq. 2.3)
             assert est is not None
             # Kalman update of the motion filter with the fused position as its measurement
@@ -224,15 +234,15 @@ class ToolTracker:
         keep.sort(key=lambda h: (-h.hits, h.id))
         self.heads = []
         for h in keep:
-            if all(math.hypot(*(h.x[:2] - o.x[:2])) > self.merge for o in self.heads):
+            if all(math.hypot(*(h.x[:2] - o.x[:2])) > self.merge * self._px for o in self.heads):
                 self.heads.append(h)
         rows = [[h.id, h.x[0], h.x[1], h.size, h.angle, h.score] for h in sorted(self.heads, key=lambda h: h.id)
                 if h.miss <= self.coast and h.hits >= 2]
         for j, d in enumerate(D):
             # a detection no head explains starts one, unless it lies on a head (a second response)
-            if j not in used and d[4] >= self.birth and all(math.hypot(*(d[:2] - h.x[:2])) > self.merge
+            if j not in used and d[4] >= self.birth and all(math.hypot(*(d[:2] - h.x[:2])) > self.merge * self._px
                                                              for h in self.heads):
-                P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0])
+                P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0]) * self._px**2
                 self.heads.append(_Head(self._next_id, np.array([d[0], d[1], 0.0, 0.0]), P, float(d[2]), float(d[3]),
                                         float(d[4])))
                 self._next_id += 1

@@ -85,6 +85,10 @@ def test_cnn_model_learns_pose_round_trips_and_needs_its_views(rendered, tmp_pat
     assert np.all(err[:2] < 0.7 * base[:2]) and np.all(err < base), (err, base)
     with pytest.raises(InputError, match="boxes"):
         reg.predict(timgs)
+    # the domain test: no crops, nothing to judge; crops without their views, the same error
+    assert np.isnan(reg.domain_auc([]))
+    with pytest.raises(InputError, match="boxes"):
+        reg.domain_auc(timgs[:10])
     path = tmp_path / "m.npz"
     reg.save(path)
     again = PoseRegressor.load(path)

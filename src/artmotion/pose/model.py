@@ -323,6 +323,8 @@ class PoseRegressor:
         if gp is None:
             raise RuntimeError("PoseRegressor is not fitted")
         n = len(images)
+        if n == 0:  # nothing to judge (and no views to check: a run with no tracks has none)
+            return float("nan")
         V = self._check_views(views, n)
         if n < DOMAIN_MIN:
             return float("nan")

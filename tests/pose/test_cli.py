@@ -48,6 +48,18 @@ def test_render_is_deterministic(tmp_path, run_cli):
     # --dark: the same motion and scene as the normal-light render of that seed, in low light
     run_cli("pose", "render", tmp_path / "d", "--poses", 3, "--seed", 7, "--dark", "--no-frames")
     assert (tmp_path / "a" / "labels.csv").read_text() == (tmp_path / "d" / "labels.csv").read_text()
+    # --style alt: the same motion (labels) in another look; an unknown style is one line
+    run_cli("pose", "render", tmp_path / "e", "--poses", 3, "--seed", 7, "--style", "alt", "--no-frames")
+    assert (tmp_path / "a" / "labels.csv").read_text() == (tmp_path / "e" / "labels.csv").read_text()
+    alt = cv2.imread(str(tmp_path / "e" / "crops" / "000002.png")).astype(float)
+    usual = cv2.imread(str(tmp_path / "a" / "crops" / "000002.png")).astype(float)
+    assert alt.shape == usual.shape and np.abs(alt - usual).mean(axis=(0, 1))[1] > 20  # yellow, not pink: more green
+    run_cli("pose", "render", tmp_path / "g", "--poses", 3, "--seed", 7, "--style", "random", "--no-frames")
+    assert (tmp_path / "a" / "labels.csv").read_text() == (tmp_path / "g" / "labels.csv").read_text()
+    rand = cv2.imread(str(tmp_path / "g" / "crops" / "000002.png")).astype(float)
+    assert np.abs(rand - usual).mean() > 10 and np.abs(rand - alt).mean() > 10
+    code, _, err = run_cli("pose", "render", tmp_path / "f", "--poses", 3, "--style", "gold")
+    assert code == 2 and "unknown style" in err and not (tmp_path / "f").exists()
     light = cv2.imread(str(tmp_path / "a" / "crops" / "000002.png")).astype(float)
     dark = cv2.imread(str(tmp_path / "d" / "crops" / "000002.png")).astype(float)
     assert dark.shape == light.shape and dark.mean() < 0.45 * light.mean()

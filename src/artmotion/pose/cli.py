@@ -47,12 +47,15 @@ def render_cmd(
     motion: str = typer.Option("script", "--motion",
                                help="script (pick and place) or cover (even coverage of the joint ranges: training sets)."),
     scenes: int = typer.Option(1, "--scenes", help="Backgrounds (tissue and tint), each for an equal stretch of frames."),
+    style: str = typer.Option("default", "--style",
+                              help="Look of tool and tissue: default; alt (yellow tissue, brass jaws, lighter "
+                                   "stem); random (a random look per scene). The same motion for a seed."),
 ):
     """Render a sequence of a two-jaw grasper seen by an endoscope."""
     from artmotion.pose.render import write_dataset
 
     t = time.perf_counter()
-    write_dataset(out, poses, seed, dark, frames, progress=True, motion=motion, scenes=scenes)
+    write_dataset(out, poses, seed, dark, frames, progress=True, motion=motion, scenes=scenes, style=style)
     typer.echo(f"wrote {poses} crops and labels to {out} ({time.perf_counter() - t:.1f} s)")
 
 

@@ -275,15 +275,37 @@ def draw_tool(img, pose: ToolPose, stem_color=(40, 40, 45), metal=(175, 175, 180
     return np.concatenate(key, axis=0), FOCAL * STEM_R / min(back[2], tip[2])
 
 
-def tissue(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
-    """A procedural pinkish tissue texture ``(h, w, 3)`` float32 in [0, 1] (BGR)."""
+#: looks of the tool and the tissue (BGR): ``default``, and ``alt`` — fatty yellow tissue, a brass
+#: end effector and a lighter stem — to measure how much a model trained on one look moves on another;
+#: ``random`` (not in this table) draws a look per scene (:func:`random_look`)
+STYLES = {
+    "default": {"tissue": (0.42, 0.45, 0.78), "tissue_dark": (0.20, 0.18, 0.52), "stem": (40, 40, 45),
+                "metal": (175, 175, 180)},
+    "alt": {"tissue": (0.50, 0.74, 0.86), "tissue_dark": (0.22, 0.38, 0.58), "stem": (95, 88, 80),
+            "metal": (110, 150, 190)},
+}
+
+
+def random_look(rng: np.random.Generator) -> dict:
+    """A look drawn at random (domain randomisation): tissue of any colour between dark and light,
+    a metal end effector grey to tinted (brass, bronze, bluish), a stem dark to mid grey."""
+    tissue_c = rng.uniform(0.3, 0.9, 3)
+    return {"tissue": tuple(tissue_c), "tissue_dark": tuple(tissue_c * rng.uniform(0.35, 0.7)),
+            "metal": tuple(rng.uniform(110, 210) * rng.uniform(0.7, 1.3, 3)),
+            "stem": tuple(rng.uniform(30, 110) * rng.uniform(0.8, 1.2, 3))}
+
+
+def tissue(rng: np.random.Generator, w: int, h: int, look: dict | None = None) -> np.ndarray:
+    """A procedural tissue texture ``(h, w, 3)`` float32 in [0, 1] (BGR): pinkish, or in the colours
+    of ``look`` (a :data:`STYLES` entry or :func:`random_look`)."""
+    look = STYLES["default"] if look is None else look
     acc = np.zeros((h, w), np.float32)
     for cells, amp in ((4, 0.5), (12, 0.3), (40, 0.15), (120, 0.08)):
         small = rng.normal(0, 1, (max(2, cells * h // w), cells)).astype(np.float32)
         acc += amp * cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
     acc = (acc - acc.min()) / (np.ptp(acc) + 1e-6)
-    base = np.array([0.42, 0.45, 0.78], np.float32)  # BGR pink
-    dark = np.array([0.20, 0.18, 0.52], np.float32)
+    base = np.array(look["tissue"], np.float32)  # BGR (default: pink)
+    dark = np.array(look["tissue_dark"], np.float32)
     img = dark + (base - dark) * acc[..., None]
     vessels: np.ndarray = np.zeros((h, w), np.float32)
     for _ in range(int(rng.integers(5, 10))):
@@ -320,16 +342,21 @@ class RenderedFrame:
     angles: np.ndarray  # yaw, pitch, roll, opening (deg)
 
 
-def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "script", scenes: int = 1):
+def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "script", scenes: int = 1,
+                    style: str = "default"):
     """Yield ``n`` :class:`RenderedFrame` of one sequence (deterministic for a seed).
 
     ``motion``: ``"script"`` (pick and place, :func:`pose_script`) or ``"cover"`` (even coverage
     of the joint ranges, :func:`cover_script`). ``scenes`` > 1 splits the sequence into that many
     stretches, each over its own tissue and tint (a training set that has seen one background
-    learns that background)."""
+    learns that background). ``style``: the look of tool and tissue (:data:`STYLES`, or ``random``:
+    a look of :func:`random_look` per scene); the same seed draws the same motion and scene in
+    every style."""
     rng = np.random.default_rng([seed, 3])
     traj = MOTIONS[motion](n, rng)
-    bg = tissue(rng, WIDTH + 80, HEIGHT + 60)
+    looks = ([random_look(np.random.default_rng([seed, 5, k])) for k in range(scenes)] if style == "random"
+             else [STYLES[style]] * scenes)
+    bg = tissue(rng, WIDTH + 80, HEIGHT + 60, looks[0])
     yy, xx = np.mgrid[0:HEIGHT, 0:WIDTH].astype(np.float32)
     vign = np.clip(1.15 - 0.9 * (((xx - WIDTH / 2) / WIDTH) ** 2 + ((yy - HEIGHT / 2) / HEIGHT) ** 2) * 2.2, 0.25, 1.0)
     gain = _smooth_series(rng, n, 40, 0.7, 1.2)
@@ -337,7 +364,7 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
         gain = 0.18 + (gain - 0.7) * (0.35 - 0.18) / (1.2 - 0.7)
     tint = rng.uniform(0.9, 1.1, 3).astype(np.float32)
     scene_rng = np.random.default_rng([seed, 4])  # its own stream: one scene renders as before
-    backgrounds = [bg] + [tissue(scene_rng, WIDTH + 80, HEIGHT + 60) for _ in range(scenes - 1)]
+    backgrounds = [bg] + [tissue(scene_rng, WIDTH + 80, HEIGHT + 60, looks[k]) for k in range(1, scenes)]
     tints = [tint] + [scene_rng.uniform(0.85, 1.15, 3).astype(np.float32) for _ in range(scenes - 1)]
     # (two series drawn and unused: kept so that a seed renders the same images as before)
     _smooth_series(rng, n, 50, 0, 80), _smooth_series(rng, n, 50, 0, 60)
@@ -360,7 +387,7 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
         return pose, c
 
     for i in range(n):
-        bg, tint = backgrounds[i * scenes // n], tints[i * scenes // n]
+        bg, tint, look = backgrounds[i * scenes // n], tints[i * scenes // n], looks[i * scenes // n]
         pose_i, cam = posed(traj[i], i)
         ox = int(np.clip(40 + cam[0] * 0.6, 0, 80))
         oy = int(np.clip(30 + cam[1] * 0.6, 0, 60))
@@ -377,7 +404,8 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
             pose = ToolPose(*(traj[i] * a + prev * (1 - a)))
             pose.origin = pose_i.origin
             img = base.copy()
-            pts, rad = draw_tool(img, pose, glint=0.8, spec_shift=float(spec_shift[i]))
+            pts, rad = draw_tool(img, pose, stem_color=look["stem"], metal=look["metal"], glint=0.8,
+                                 spec_shift=float(spec_shift[i]))
             if k == 0:
                 key_pts, key_rad = pts, rad
             if other_on[i]:
@@ -411,7 +439,7 @@ MAX_POSES = 1_000_000
 
 
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
-                  progress: bool = False, motion: str = "script", scenes: int = 1) -> Path:
+                  progress: bool = False, motion: str = "script", scenes: int = 1, style: str = "default") -> Path:
     """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``.
 
     A new folder (or an earlier rendering in it) appears only when every file is written
@@ -421,9 +449,11 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
     if motion not in MOTIONS:
         raise InputError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
     check_range("--scenes", scenes, 1, n, integer=True)
+    if style not in (*STYLES, "random"):
+        raise InputError(f"unknown style {style!r}; choose one of {', '.join(STYLES)}, random")
     out = Path(out)
     with atomic_dir(out, replace=_is_rendering) as tmp:
-        _write_dataset(tmp, n, seed, dark, frames, progress, motion, scenes)
+        _write_dataset(tmp, n, seed, dark, frames, progress, motion, scenes, style)
     return out
 
 
@@ -434,11 +464,11 @@ def _is_rendering(folder: Path) -> bool:
 
 
 def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool, motion: str,
-                   scenes: int) -> None:
+                   scenes: int, style: str = "default") -> None:
     (out / "crops").mkdir(parents=True, exist_ok=True)
     if frames:
         (out / "frames").mkdir(parents=True, exist_ok=True)
-    it = render_sequence(n, seed, dark, motion, scenes)
+    it = render_sequence(n, seed, dark, motion, scenes, style)
     if progress:
         from tqdm import tqdm
 

@@ -1,0 +1,75 @@
+"""Pose models on another look of the same tool: ``pose render --style alt`` (a proxy for crops from a
+renderer we do not have).
+
+    .venv/bin/python benchmarks/pose_look.py MODEL [MODEL ...] [--out out/pose] [--no-write]
+
+For each model (``artmotion pose train``; one that uses box views is given them), the unseen
+sequences of benchmarks/pose_unseen.py (seeds 1 and 2, the pick-and-place script, 600 frames) are
+scored in the default look and in the ``alt`` look — yellow tissue, brass jaws, a lighter stem, the
+same motion and scene — rendered into ``--out`` when missing: orientation and opening error
+(degrees), all four angles inside ±3σ, and the domain test's AUC
+(:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`). Writes docs/pose.md's table between
+``<!-- pose-look -->``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+from _docs import replace_block
+
+from artmotion.pose.data import read_views
+from artmotion.pose.evaluate import Columns, summary
+from artmotion.pose.model import PoseRegressor
+from artmotion.pose.render import write_dataset
+
+ROOT = Path(__file__).resolve().parents[1]
+SETS = {"test": (1, "default"), "test_alt": (1, "alt"), "test2": (2, "default"), "test2_alt": (2, "alt")}
+
+
+def load(out: Path, name: str):
+    d = out / name
+    seed, style = SETS[name]
+    if not (d / "boxes.csv").exists():
+        print(f"rendering {d} ...", flush=True)
+        write_dataset(d, 600, seed, frames=True, style=style)
+    rows = list(csv.DictReader(open(d / "labels.csv")))
+    crops = [cv2.imread(str(d / "crops" / r["image"])) for r in rows]
+    Y = np.array([[float(r[k]) for k in ("yaw", "pitch", "roll", "opening")] for r in rows])
+    return crops, Y, read_views(d / "boxes.csv", [Path(r["image"]) for r in rows])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("models", nargs="+", type=Path)
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "pose")
+    ap.add_argument("--no-write", action="store_true")
+    a = ap.parse_args(argv)
+    data = {k: load(a.out, k) for k in SETS}
+    lines = ["| model | sequence | look | orientation | opening | all 4 in ±3σ | domain AUC |",
+             "|---|---|---|---|---|---|---|"]
+    for path in a.models:
+        m = PoseRegressor.load(path)
+        cols = Columns.from_names(m.names_)
+        for name, (seed, style) in SETS.items():
+            crops, Y, V = data[name]
+            views = V if m.uses_views_ else None
+            mu, sd = m.predict(crops, return_std=True, views=views)
+            s = summary(Y, mu, sd, mu, cols, m.names_)
+            lines.append(f"| {m.feature} ({path.name}) | seed {seed} | {style} | {s['orientation']:.2f} | "
+                         f"{s['opening']:.2f} | {100 * s['all in 3sd']:.1f} % | {m.domain_auc(crops, views):.2f} |")
+            print(lines[-1], flush=True)
+    text = "\n".join(lines)
+    print(text)
+    if not a.no_write:
+        replace_block(ROOT / "docs" / "pose.md", "pose-look", text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

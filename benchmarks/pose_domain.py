@@ -14,7 +14,6 @@ Writes docs/surgical.md's table between ``<!-- pose-domain -->``.
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
@@ -22,16 +21,15 @@ import cv2
 import numpy as np
 from _docs import replace_block
 
-from artmotion.pose.data import read_views
+from artmotion.pose.data import load_labelled, read_views
 from artmotion.pose.features import box_views
 from artmotion.pose.model import PoseRegressor, is_foreign
 from artmotion.tracking.instruments.annotations import read_tools_csv
 
 
 def render_set(folder: Path):
-    rows = list(csv.DictReader(open(folder / "labels.csv")))
-    crops = [cv2.imread(str(folder / "crops" / r["image"])) for r in rows]
-    return crops, read_views(folder / "boxes.csv", [Path(r["image"]) for r in rows])
+    _, paths, crops, _ = load_labelled(folder / "crops", folder / "labels.csv")
+    return crops, read_views(folder / "boxes.csv", paths)
 
 
 def lap_set(root: Path):

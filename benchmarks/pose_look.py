@@ -15,15 +15,12 @@ same motion and scene — rendered into ``--out`` when missing: orientation and 
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
-import cv2
-import numpy as np
 from _docs import replace_block
 
-from artmotion.pose.data import read_views
+from artmotion.pose.data import load_labelled, read_views
 from artmotion.pose.evaluate import Columns, summary
 from artmotion.pose.model import PoseRegressor
 from artmotion.pose.render import write_dataset
@@ -38,10 +35,8 @@ def load(out: Path, name: str):
     if not (d / "boxes.csv").exists():
         print(f"rendering {d} ...", flush=True)
         write_dataset(d, 600, seed, frames=True, style=style)
-    rows = list(csv.DictReader(open(d / "labels.csv")))
-    crops = [cv2.imread(str(d / "crops" / r["image"])) for r in rows]
-    Y = np.array([[float(r[k]) for k in ("yaw", "pitch", "roll", "opening")] for r in rows])
-    return crops, Y, read_views(d / "boxes.csv", [Path(r["image"]) for r in rows])
+    _, paths, crops, Y = load_labelled(d / "crops", d / "labels.csv")
+    return crops, Y, read_views(d / "boxes.csv", paths)
 
 
 def main(argv=None) -> int:

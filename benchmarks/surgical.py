@@ -108,7 +108,6 @@ def fold_detector(a, k: int, frames: list, heads: list) -> ToolDetector:
     """The detector of fold ``k``: trained here, or loaded from ``--cache`` when an earlier run with the
     same folds, epochs, threshold and annotations kept it (its training time is kept beside it). The
     frames are not in the key: the same annotations with other frames would be another data set."""
-    # the key names everything the detector depends on: a detector of other folds or data never returns
     key = hashlib.sha1(Path(a.data, "tools.csv").read_bytes()).hexdigest()[:10]
     path = Path(a.cache, f"fold{k}of{a.folds}-e{a.epochs}-t{FLOOR}-{key}.pt") if a.cache else None
     if path is not None and path.is_file():

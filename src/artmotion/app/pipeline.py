@@ -126,23 +126,27 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
                 if x1 - x0 >= 4 and y1 - y0 >= 4:
                     crops.setdefault(int(r[1]), []).append((fno, frame[y0:y1, x0:x1].copy(), (x0, y0, x1 - x0, y1 - y0)))
             size = (frame.shape[1], frame.shape[0])
-    items = [it for tid in sorted(crops) for it in crops[tid]]
+    tids = sorted(crops)
+    items = [it for tid in tids for it in crops[tid]]
     views = box_views([b for _, _, b in items], size) if model.uses_views_ and items else None
-    auc = model.domain_auc([c for _, c, _ in items], views)
+    images = [c for _, c, _ in items]
+    auc = model.domain_auc(images, views)
     judged = not np.isnan(auc)
     info = {"crops": len(items), "domain_auc": round(auc, 3) if judged else None, "judged": judged,
             "applies": not is_foreign(auc)}
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    if not info["applies"]:
+    if not info["applies"] or not items:
         return out, info
+    # every track's crops in one call (the model batches them), then each track filtered in time
+    mean, std = model.predict(images, return_std=True, views=views)
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
-    for tid, its in crops.items():
-        if len(its) < min_boxes:
-            continue
-        views = box_views([b for _, _, b in its], size) if model.uses_views_ else None
-        mean, std = model.predict([c for _, c, _ in its], return_std=True, views=views)
-        mean, _ = model.make_filter(dt).filter(mean, std)
-        out[tid] = (np.array([f for f, _, _ in its]), np.asarray(mean)[:, k])
+    start = 0
+    for tid in tids:
+        its, rows = crops[tid], slice(start, start + len(crops[tid]))
+        start = rows.stop
+        if len(its) >= min_boxes:
+            m, _ = model.make_filter(dt).filter(mean[rows], std[rows])
+            out[tid] = (np.array([f for f, _, _ in its]), np.asarray(m)[:, k])
     return out, info
 
 

@@ -1,21 +1,25 @@
 """Pose on motion the model has never seen (issue 17): HOG + GP vs the cnn feature + GP.
 
-    .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv]
+    .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv] [--save MODEL]
 
-Renders (once, cached under --out) two training sets of 4000 frames, seed 0: ``normal`` (the
-pick-and-place script) and ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
-evenly, ten backgrounds), and four unseen test sequences of 600 frames: pick and place with seeds
-1 and 2, each in normal light and dark (``--dark``: the same frames in low light). Then, every
-model trained on the training crops only:
+Renders (once, cached under --out) three training sets of 4000 frames, seed 0: ``normal`` (the
+pick-and-place script), ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
+evenly, ten backgrounds) and ``cover_random`` (the same motion with ``--style random``: every
+scene in a random look of tissue and metal), and four unseen test sequences of 600 frames: pick
+and place with seeds 1 and 2, each in normal light and dark (``--dark``: the same frames in low
+light). Then, every model trained on the training crops only:
 
-* unseen sequences: HOG (the thesis' model on the script set, and on both sets) and cnn (both
-  sets, with the boxes' places in their frames); raw and Kalman-filtered; ±3σ coverage;
-* protocols side by side on the 8000 training crops: random 5-fold (the thesis), contiguous 5-fold;
-* learning curve: the cnn model on 1000-8000 training crops (every k-th frame of both sets);
-* ablations of the cnn model (mean over the four unseen sequences): no box views, no augmentation,
-  equal loss weights, cover set only, script set only;
+* unseen sequences: HOG (the thesis' model on the script set, and on the pooled sets) and cnn
+  (the recipe: all three sets, with the boxes' places in their frames); raw and Kalman-filtered;
+  ±3σ coverage;
+* protocols side by side on the recipe's 12,000 crops: random 5-fold (the thesis), contiguous 5-fold;
+* learning curve: the cnn model on 1000-12,000 training crops (evenly spaced rows of the three sets);
+* ablations of the cnn model (mean over the four unseen sequences): without the random looks (the
+  previous recipe), no box views, no augmentation, equal loss weights, cover set only, script set only;
 * error against the distance from a test pose to the nearest training pose;
 * cost: training time on 4000 crops, one frame's prediction, batch throughput (run it alone).
+
+The recipe's model is saved (``--save``) for benchmarks/pose_look.py.
 
 Prints Markdown and writes it between ``<!-- pose-unseen -->`` markers of docs/pose.md, and
 docs/pose_unseen.json.
@@ -42,23 +46,28 @@ from artmotion.pose.evaluate import Columns, cross_validate, errors, summary  # 
 from artmotion.pose.model import PoseRegressor  # noqa: E402
 from artmotion.pose.render import write_dataset  # noqa: E402
 
-RENDERS = {  # name: (poses, seed, dark, motion, scenes)
-    "normal": (4000, 0, False, "script", 1),
-    "cover": (4000, 0, False, "cover", 10),
-    "test": (600, 1, False, "script", 1),
-    "dark": (600, 1, True, "script", 1),
-    "test2": (600, 2, False, "script", 1),
-    "dark2": (600, 2, True, "script", 1),
+RENDERS = {  # name: (poses, seed, dark, motion, scenes, style)
+    "normal": (4000, 0, False, "script", 1, "default"),
+    "cover": (4000, 0, False, "cover", 10, "default"),
+    "cover_random": (4000, 0, False, "cover", 10, "random"),
+    "test": (600, 1, False, "script", 1, "default"),
+    "dark": (600, 1, True, "script", 1, "default"),
+    "test2": (600, 2, False, "script", 1, "default"),
+    "dark2": (600, 2, True, "script", 1, "default"),
 }
+#: the training sets of the recipe (the script, the cover motion, the cover motion in random looks)
+RECIPE = ("cover", "normal", "cover_random")
+RECIPE_LABEL = "cnn + views, three sets (default recipe)"
+
 UNSEEN = ("test", "dark", "test2", "dark2")
 
 
 def load(out: Path, name: str):
     d = out / name
-    n, seed, dark, motion, scenes = RENDERS[name]
+    n, seed, dark, motion, scenes, style = RENDERS[name]
     if not (d / "boxes.csv").exists() or "frame_w" not in (d / "boxes.csv").read_text().splitlines()[0]:
         print(f"rendering {d} ...", flush=True)
-        write_dataset(d, n, seed, dark, frames=True, motion=motion, scenes=scenes)
+        write_dataset(d, n, seed, dark, frames=True, motion=motion, scenes=scenes, style=style)
     names, paths, imgs, Y = load_labelled(d / "crops", d / "labels.csv")
     return names, imgs, Y, read_views(d / "boxes.csv", paths)
 
@@ -83,15 +92,20 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=str(ROOT / "out" / "pose"))
     ap.add_argument("--no-docs", action="store_true")
+    ap.add_argument("--save", default=str(ROOT / "out" / "pose" / "models" / "cnn-recipe.npz"),
+                    help="where the recipe's model is written (for benchmarks/pose_look.py; '' to skip)")
     ap.add_argument("--skip-cv", action="store_true", help="leave out the 5-fold protocols (10 cnn trainings)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     data = {k: load(out, k) for k in RENDERS}
     names = data["normal"][0]
     cols = Columns.from_names(names)
-    imgs = data["cover"][1] + data["normal"][1]
-    Y = np.concatenate([data["cover"][2], data["normal"][2]])
-    V = np.concatenate([data["cover"][3], data["normal"][3]])
+    def pooled(sets):
+        return ([c for k in sets for c in data[k][1]], np.concatenate([data[k][2] for k in sets]),
+                np.concatenate([data[k][3] for k in sets]))
+
+    imgs, Y, V = pooled(RECIPE)
+    imgs2, Y2, V2 = pooled(RECIPE[:2])
     lines: list[str] = []
     say = lambda s="": (print(s, flush=True), lines.append(s))  # noqa: E731
     results: dict = {}
@@ -108,8 +122,12 @@ def main(argv=None):
 
     # -- unseen sequences
     train("HOG, script set (the thesis' model)", "hog", data["normal"][1], data["normal"][2])
-    train("HOG, both sets", "hog", imgs, Y)
-    cnn_reg, _ = train("cnn + views, both sets (default recipe)", "cnn", imgs, Y, V)
+    train("HOG, script and cover sets", "hog", imgs2, Y2)
+    train("HOG, three sets", "hog", imgs, Y)
+    cnn_reg, _ = train(RECIPE_LABEL, "cnn", imgs, Y, V)
+    if args.save:
+        Path(args.save).parent.mkdir(parents=True, exist_ok=True)
+        cnn_reg.save(args.save)
     say("#### Unseen sequences (trained on rendered sets only; mean error in degrees, orientation / opening)")
     say()
     say("| model | n | seq 1 | seq 1 dark | seq 2 | seq 2 dark | **mean** | mean, Kalman-filtered | dark / normal | "
@@ -127,24 +145,28 @@ def main(argv=None):
     for label in list(results):
         row(label)
     # -- ablations of the cnn recipe
+    train("cnn, script and cover sets (no random looks; the previous recipe)", "cnn", imgs2, Y2, V2)
     train("cnn without views", "cnn", imgs, Y)
     train("cnn without augmentation", "cnn", imgs, Y, V, augment=False)
     train("cnn, opening weight 1 (not 3)", "cnn", imgs, Y, V, opening_weight=1.0)
     train("cnn, cover set only", "cnn", data["cover"][1], data["cover"][2], data["cover"][3])
     train("cnn, script set only", "cnn", data["normal"][1], data["normal"][2], data["normal"][3])
-    for label in ("cnn without views", "cnn without augmentation", "cnn, opening weight 1 (not 3)", "cnn, cover set only",
+    for label in ("cnn, script and cover sets (no random looks; the previous recipe)", "cnn without views",
+                  "cnn without augmentation", "cnn, opening weight 1 (not 3)", "cnn, cover set only",
                   "cnn, script set only"):
         row(label)
     say()
     # -- learning curve
-    say("#### Learning curve (cnn + views; every k-th frame of both training sets; mean over the four unseen sequences)")
+    say("#### Learning curve (cnn + views; every k-th frame of the recipe's three training sets; mean over the four "
+        "unseen sequences)")
     say()
     say("| training crops | orientation | opening | all 4 in ±3σ | training (s) |")
     say("|---|---|---|---|---|")
-    for n in (1000, 2000, 4000):
-        idx = np.arange(0, len(Y), len(Y) // n)[:n]
+    sizes = (1000, 2000, 4000, 8000)
+    for n in sizes:
+        idx = np.round(np.linspace(0, len(Y), n, endpoint=False)).astype(int)
         train(f"cnn, {n} crops", "cnn", [imgs[i] for i in idx], Y[idx], V[idx])
-    curve = [(f"cnn, {n} crops", n) for n in (1000, 2000, 4000)] + [("cnn + views, both sets (default recipe)", len(Y))]
+    curve = [(f"cnn, {n} crops", n) for n in sizes] + [(RECIPE_LABEL, len(Y))]
     for label, n in curve:
         r = results[label]
         say(f"| {n} | {r['mean orientation']:.2f} | {r['mean opening']:.2f} | {100 * r['mean all in 3sd']:.1f} % | "
@@ -158,7 +180,7 @@ def main(argv=None):
     rows = []
     for k in ("test", "test2"):
         d, _ = tree.query(data[k][2] / scale)
-        e = errors(data[k][2], results["cnn + views, both sets (default recipe)"][k]["pred"], cols, names)
+        e = errors(data[k][2], results[RECIPE_LABEL][k]["pred"], cols, names)
         eh = errors(data[k][2], results["HOG, script set (the thesis' model)"][k]["pred"], cols, names)
         rows.append((d, e["orientation"], e["opening"], eh["orientation"], eh["opening"]))
     d, eo, ep, ho, hp = (np.concatenate(c) for c in zip(*rows))
@@ -175,7 +197,8 @@ def main(argv=None):
     say()
     # -- protocols side by side
     if not args.skip_cv:
-        say("#### Protocols side by side (both training sets, 8000 crops; mean error, degrees, orientation / opening)")
+        say(f"#### Protocols side by side (the recipe's training sets, {len(Y)} crops; mean error, degrees, "
+            "orientation / opening)")
         say()
         say("| protocol | HOG | cnn + views | HOG, all 4 in ±3σ | cnn, all 4 in ±3σ |")
         say("|---|---|---|---|---|")
@@ -190,8 +213,8 @@ def main(argv=None):
             say(f"| {split} 5-fold | {cells[0]['orientation']:.2f} / {cells[0]['opening']:.2f} | "
                 f"{cells[1]['orientation']:.2f} / {cells[1]['opening']:.2f} | {100 * cells[0]['all in 3sd']:.1f} % | "
                 f"{100 * cells[1]['all in 3sd']:.1f} % |")
-        r = results["cnn + views, both sets (default recipe)"]
-        h = results["HOG, both sets"]
+        r = results[RECIPE_LABEL]
+        h = results["HOG, three sets"]
         say(f"| unseen sequences (mean of four) | {h['mean orientation']:.2f} / {h['mean opening']:.2f} | "
             f"{r['mean orientation']:.2f} / {r['mean opening']:.2f} | {100 * h['mean all in 3sd']:.1f} % | "
             f"{100 * r['mean all in 3sd']:.1f} % |")
@@ -209,8 +232,8 @@ def main(argv=None):
     batch, bviews = data["test"][1] * 4, np.concatenate([data["test"][3]] * 4)
     tb = min(_timed(lambda: cnn_reg.predict(batch, return_std=True, views=bviews)) for _ in range(2))
     t4000 = results["cnn, cover set only"]["train seconds"]
-    say(f"Cost (2 CPU cores): training on 4000 crops {t4000:.0f} s (cover set; 8000 crops: "
-        f"{results['cnn + views, both sets (default recipe)']['train seconds']:.0f} s: the network's cost is its "
+    say(f"Cost (2 CPU cores): training on 4000 crops {t4000:.0f} s (cover set; {len(Y)} crops: "
+        f"{results[RECIPE_LABEL]['train seconds']:.0f} s: the network's cost is its "
         f"3000 mini-batches, whatever n), one frame (resize, network, GP mean and variance, Kalman step) "
         f"{1000 * t1:.2f} ms, batch {len(batch) / tb:.0f} frames/s.")
     text = "\n".join(lines)

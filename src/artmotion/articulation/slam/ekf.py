@@ -103,11 +103,16 @@ class _Block:
 
     def position(self, s: np.ndarray):
         """``m_j`` and ``J_{m(t)}^{m_j}`` (2 x dim) from the block's state ``s``: ``(m_x, m_y)``, or
-        ``(q, q')`` and, if ``dim`` is 4, a shift ``(dx, dy)`` of the joint's line or centre."""
+        ``(q, q')`` and, if ``dim`` is 4, a shift ``(dx, dy)`` of the joint's line or centre, and if
+        ``dim`` is 5 also a change of its radius or direction (:meth:`Joint.position_shaped`)."""
         if self.joint is None:
             return s[:2], np.eye(2)
-        m, Jq = self.joint.position(float(s[0]))
         J = np.zeros((2, self.dim))
+        if self.dim == 5:
+            m, Js = self.joint.position_shaped(float(s[0]), s[2:5])
+            J[:, 0], J[:, 2:5] = Js[:, 0], Js[:, 1:]
+            return m, J
+        m, Jq = self.joint.position(float(s[0]))
         J[:, 0] = Jq
         if self.dim == 4:
             m = m + s[2:4]
@@ -127,7 +132,11 @@ class EKFSlam:
     that it moves (an interacting-multiple-model view of "static or moving"; 0 turns it off).
     ``joint_shift``: a moving landmark's state also holds a shift ``(dx, dy)`` of its fitted line or
     circle, which starts with the robot's uncertainty (the joint was fitted to points seen from the
-    robot's estimates) plus ``point_noise``; without it the joint is taken as exact.
+    robot's estimates) plus ``point_noise``; without it the joint is taken as exact. ``joint_shape``
+    (with ``joint_shift``) also puts the joint's radius (revolute) or direction (prismatic) in the
+    state: shift and shape then start with the fit's own covariance (Gauss-Newton on the sightings
+    Algorithm 1 fitted, :meth:`~artmotion.articulation.slam.landmarks.Joint.shape_covariance`)
+    instead of ``point_noise``, and every sighting refines them.
 
     ``gating`` (default: on when articulated) applies a chi^2 (2 dof) validation gate that a
     consistent sighting fails with probability ``gate`` (1 %: chosen by leave-one-world-out); a
@@ -139,7 +148,8 @@ class EKFSlam:
                  articulated: bool = False, threshold: float = 0.75, min_samples: int = 7,
                  point_noise: float = 0.15, max_radius: float = 5.0, motion_var: float = 0.01,
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
-                 undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01):
+                 undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01,
+                 joint_shape: bool = True):
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])
@@ -147,6 +157,7 @@ class EKFSlam:
         self.delayed = delayed
         self.undecided_var = undecided_var
         self.joint_shift = joint_shift
+        self.joint_shape = joint_shape
         cap = 3 + 2 * n_max  # grows if moving landmarks need more (see _append)
         self.mu = np.zeros(cap)
         self.P = np.zeros((cap, cap))
@@ -325,13 +336,21 @@ class EKFSlam:
                          np.diag([Gq @ Pm @ Gq, d.rate_var]))
             return
         # the joint was fitted to points seen from the robot's estimates: its place shares the
-        # robot's uncertainty (like a static landmark's) plus the fit's own
-        b = _Block(d.kind, self.n, 4, d.joint)
-        b.F, b.Q = np.eye(4), np.zeros((4, 4))
+        # robot's uncertainty (like a static landmark's) plus the fit's own; with ``joint_shape``
+        # its radius or direction is a state too, starting with the fit's covariance
+        dim = 5 if self.joint_shape and d.shape_cov is not None else 4
+        b = _Block(d.kind, self.n, dim, d.joint)
+        b.F, b.Q = np.eye(dim), np.zeros((dim, dim))
         b.F[:2, :2], b.Q[:2, :2] = F, Q
-        extra = np.diag([Gq @ Pm @ Gq, d.rate_var, 0.0, 0.0])
-        extra[2:, 2:] = self.models.point_noise**2 * np.eye(2)
-        self._append(i, b, np.array([d.q, d.rate, 0.0, 0.0]), np.vstack([np.zeros((2, 3)), Gx]), extra)
+        extra = np.zeros((dim, dim))
+        extra[0, 0], extra[1, 1] = Gq @ Pm @ Gq, d.rate_var
+        if dim == 5:
+            extra[2:, 2:] = d.shape_cov
+        else:
+            extra[2:, 2:] = self.models.point_noise**2 * np.eye(2)
+        Gfull = np.zeros((dim, 3))
+        Gfull[2:4] = Gx
+        self._append(i, b, np.r_[d.q, d.rate, np.zeros(dim - 2)], Gfull, extra)
 
     @property
     def kinds(self) -> dict[int, str]:

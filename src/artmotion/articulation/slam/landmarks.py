@@ -38,6 +38,48 @@ class Joint:
         c, s = math.cos(q), math.sin(q)
         return self.origin + self.radius * np.array([c, s]), self.radius * np.array([-s, c])
 
+    def position_shaped(self, q: float, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``m(q)`` on the joint moved by ``e = (dx, dy, de)``: a shift of its line or centre, and
+        ``de`` added to the radius (revolute) or turning the line about its origin (prismatic, rad);
+        with ``dm/d(q, dx, dy, de)`` (2 x 4)."""
+        J = np.zeros((2, 4))
+        J[:, 1:3] = np.eye(2)
+        if self.kind == "prismatic":
+            assert self.direction is not None
+            c, s = math.cos(e[2]), math.sin(e[2])
+            d0 = self.direction
+            d = np.array([c * d0[0] - s * d0[1], s * d0[0] + c * d0[1]])
+            J[:, 0] = d
+            J[:, 3] = q * np.array([-d[1], d[0]])
+            return self.origin + e[:2] + q * d, J
+        c, s = math.cos(q), math.sin(q)
+        r = self.radius + e[2]
+        J[:, 0] = r * np.array([-s, c])
+        J[:, 3] = [c, s]
+        return self.origin + e[:2] + r * np.array([c, s]), J
+
+    def shape_covariance(self, points: np.ndarray, sigma: float, gauge: float) -> np.ndarray:
+        """Covariance of ``(dx, dy, de)`` (see :meth:`position_shaped`) from a least-squares fit of
+        the joint to ``points`` (n, 2) with noise ``sigma`` off the path: ``sigma^2 (J^T J)^-1`` of the
+        residuals' Jacobian (Gauss-Newton). A revolute joint's residual is ``|p - c| - r`` in
+        ``(c_x, c_y, r)``; a prismatic one's the distance to the line, in its shift along the normal
+        and its angle; the shift along the line (which only renames ``q``) gets ``gauge^2``."""
+        P = np.asarray(points, dtype=float)[:, :2]
+        if self.kind == "revolute":
+            diff = P - self.origin
+            u = diff / np.maximum(np.linalg.norm(diff, axis=1, keepdims=True), 1e-9)
+            J = np.column_stack([-u, -np.ones(len(P))])
+            return sigma**2 * np.linalg.pinv(J.T @ J)
+        assert self.direction is not None
+        d = self.direction
+        n = np.array([-d[1], d[0]])
+        J = np.column_stack([-np.ones(len(P)), -(P - self.origin) @ d])
+        C = sigma**2 * np.linalg.pinv(J.T @ J)
+        T = np.array([[n[0], 0.0], [n[1], 0.0], [0.0, 1.0]])
+        out = T @ C @ T.T
+        out[:2, :2] += gauge**2 * np.outer(d, d)
+        return out
+
     def coordinate(self, m: np.ndarray) -> float:
         """The motion variable ``q`` of the point of the path nearest to ``m`` (the angle in (-pi, pi])."""
         if self.kind == "prismatic":
@@ -63,6 +105,7 @@ class Decision:
     dq_dm: np.ndarray | None = None
     rate: float = 0.0
     rate_var: float = 0.0
+    shape_cov: np.ndarray | None = None  #: covariance of the fitted joint's ``(dx, dy, de)`` (3 x 3)
 
 
 class LandmarkModels:
@@ -131,4 +174,5 @@ class LandmarkModels:
             joint = Joint("prismatic", model.origin[:2].copy(), d / np.linalg.norm(d))
             q = joint.coordinate(m)
         _, Jq = joint.position(q)
-        return Decision(name, joint, q, Jq / (Jq @ Jq), rate, rate_var)
+        shape = joint.shape_covariance(X, max(float(f.sigma), self.point_noise), self.point_noise)
+        return Decision(name, joint, q, Jq / (Jq @ Jq), rate, rate_var, shape)

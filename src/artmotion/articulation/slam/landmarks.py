@@ -63,18 +63,23 @@ class Joint:
         the joint to ``points`` (n, 2) with noise ``sigma`` off the path: ``sigma^2 (J^T J)^-1`` of the
         residuals' Jacobian (Gauss-Newton). A revolute joint's residual is ``|p - c| - r`` in
         ``(c_x, c_y, r)``; a prismatic one's the distance to the line, in its shift along the normal
-        and its angle; the shift along the line (which only renames ``q``) gets ``gauge^2``."""
+        and its angle; the shift along the line (which only renames ``q``) gets ``gauge^2``. A weak
+        prior keeps a fit the points hardly constrain (a short arc) finite: std the radius for
+        ``(c_x, c_y, r)``; the points' spread and 45 degrees for a line's shift and angle."""
         P = np.asarray(points, dtype=float)[:, :2]
         if self.kind == "revolute":
             diff = P - self.origin
             u = diff / np.maximum(np.linalg.norm(diff, axis=1, keepdims=True), 1e-9)
             J = np.column_stack([-u, -np.ones(len(P))])
-            return sigma**2 * np.linalg.pinv(J.T @ J)
+            prior = np.full(3, max(self.radius, gauge))
+            return sigma**2 * np.linalg.inv(J.T @ J + np.diag((sigma / prior) ** 2))
         assert self.direction is not None
         d = self.direction
         n = np.array([-d[1], d[0]])
-        J = np.column_stack([-np.ones(len(P)), -(P - self.origin) @ d])
-        C = sigma**2 * np.linalg.pinv(J.T @ J)
+        q = (P - self.origin) @ d
+        J = np.column_stack([-np.ones(len(P)), -q])
+        prior = np.array([max(float(np.ptp(q)), gauge), math.pi / 4])
+        C = sigma**2 * np.linalg.inv(J.T @ J + np.diag((sigma / prior) ** 2))
         T = np.array([[n[0], 0.0], [n[1], 0.0], [0.0, 1.0]])
         out = T @ C @ T.T
         out[:2, :2] += gauge**2 * np.outer(d, d)

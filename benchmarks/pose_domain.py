@@ -61,10 +61,11 @@ def main(argv=None) -> int:
         m = PoseRegressor.load(path)
         for name, (crops, views) in sets.items():
             v = views if m.uses_views_ else None
-            whole = m.domain_auc(crops, v)
+            X = m.features(crops)  # once for the whole set and its stretches
+            whole = m.domain_auc(X, v)
             span = []
             for w in (100, 300):
-                aucs = [a for a in (m.domain_auc(crops[s:s + w], None if v is None else v[s:s + w])
+                aucs = [a for a in (m.domain_auc(X[s:s + w], None if v is None else v[s:s + w])
                                     for s in range(0, len(crops) - w + 1, w)) if not np.isnan(a)]
                 span.append(f"{min(aucs):.2f}–{max(aucs):.2f}" if aucs else "—")
             said = "yes (not judged)" if np.isnan(whole) else "no" if is_foreign(whole) else "yes"

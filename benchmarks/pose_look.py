@@ -54,10 +54,11 @@ def main(argv=None) -> int:
         for name, (seed, style) in SETS.items():
             crops, Y, V = data[name]
             views = V if m.uses_views_ else None
-            mu, sd = m.predict(crops, return_std=True, views=views)
+            X = m.features(crops)  # once, for the prediction and the domain test
+            mu, sd = m.predict(X, return_std=True, views=views)
             s = summary(Y, mu, sd, mu, cols, m.names_)
             lines.append(f"| {m.feature} ({path.name}) | seed {seed} | {style} | {s['orientation']:.2f} | "
-                         f"{s['opening']:.2f} | {100 * s['all in 3sd']:.1f} % | {m.domain_auc(crops, views):.2f} |")
+                         f"{s['opening']:.2f} | {100 * s['all in 3sd']:.1f} % | {m.domain_auc(X, views):.2f} |")
             print(lines[-1], flush=True)
     text = "\n".join(lines)
     print(text)

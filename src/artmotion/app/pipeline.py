@@ -129,8 +129,9 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     tids = sorted(crops)
     items = [it for tid in tids for it in crops[tid]]
     views = box_views([b for _, _, b in items], size) if model.uses_views_ and items else None
-    images = [c for _, c, _ in items]
-    auc = model.domain_auc(images, views)
+    # the crops' features once, for the domain test and the prediction
+    X = model.features([c for _, c, _ in items]) if items else []
+    auc = model.domain_auc(X, views)
     judged = not np.isnan(auc)
     info = {"crops": len(items), "domain_auc": round(auc, 3) if judged else None, "judged": judged,
             "applies": not is_foreign(auc)}
@@ -138,7 +139,7 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     if not info["applies"] or not items:
         return out, info
     # every track's crops in one call (the model batches them), then each track filtered in time
-    mean, std = model.predict(images, return_std=True, views=views)
+    mean, std = model.predict(X, return_std=True, views=views)
     dt = 1.0 / float(seq.fps) if seq.fps else 1.0
     start = 0
     for tid in tids:

@@ -114,7 +114,8 @@ def predict_cmd(
         raise InputError("this model was trained with --boxes: give the crops' boxes (--boxes)", path=model)
     imgs = read_images(paths, progress=True)
     t = time.perf_counter()
-    mean, std = reg.predict(imgs, return_std=True, views=views)
+    X = reg.features(imgs)  # once, for the prediction and the domain test below
+    mean, std = reg.predict(X, return_std=True, views=views)
     if smooth:
         mean, std = reg.make_filter().filter(mean, std)
     dt = time.perf_counter() - t
@@ -122,7 +123,7 @@ def predict_cmd(
     write_predictions(out, [p.name for p in paths], reg.names_, mean, std)
     typer.echo(f"predicted {len(paths)} crops ({len(paths) / max(dt, 1e-9):.0f} frames/s"
                f"{', Kalman-smoothed' if smooth else ''}) -> {out}")
-    auc = reg.domain_auc(imgs, views)
+    auc = reg.domain_auc(X, views)
     if is_foreign(auc):
         typer.echo(f"note: the crops are unlike the model's training crops (told from the nearest of them with "
                    f"AUC {auc:.2f}; docs/surgical.md): its angles may be far off")

@@ -31,15 +31,17 @@ def box_from_center(center, size) -> np.ndarray:
 
 def box_area(b) -> np.ndarray:
     b = np.asarray(b, dtype=float)
-    return np.clip(b[..., 2], 0, None) * np.clip(b[..., 3], 0, None)
+    return np.maximum(b[..., 2], 0.0) * np.maximum(b[..., 3], 0.0)
 
 
 def intersection(a, b) -> np.ndarray:
     """Area of the intersection of boxes ``a`` and ``b`` (broadcasting)."""
-    a, b = xywh_to_xyxy(a), xywh_to_xyxy(b)
-    w = np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0])
-    h = np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1])
-    return np.clip(w, 0, None) * np.clip(h, 0, None)
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+    w = np.minimum(ax + a[..., 2], bx + b[..., 2]) - np.maximum(ax, bx)
+    h = np.minimum(ay + a[..., 3], by + b[..., 3]) - np.maximum(ay, by)
+    return np.maximum(w, 0.0) * np.maximum(h, 0.0)
 
 
 def iou(a, b) -> np.ndarray:

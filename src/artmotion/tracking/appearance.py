@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 BINS = 16
+_SHIFT = 4          # 256 / BINS = 2**4
 _EPS = 1e-3
 
-__all__ = ["BINS", "kl_divergence", "rgb_histogram"]
+__all__ = ["BINS", "kl_divergence", "kl_matrix", "rgb_histogram"]
 
 
 def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.1, parts: int = 1) -> np.ndarray | None:
@@ -18,22 +21,23 @@ def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.
     the box into that many horizontal bands (e.g. 2: upper body and legs, whose colours differ),
     each with its own histograms. ``None`` when the box is (almost) outside the image.
     """
-    x, y, w, h = np.asarray(box, dtype=float) * scale
-    x0 = int(max(0, np.floor(x + shrink * w)))
-    y0 = int(max(0, np.floor(y + shrink * h)))
-    x1 = int(min(image.shape[1], np.ceil(x + (1 - shrink) * w)))
-    y1 = int(min(image.shape[0], np.ceil(y + (1 - shrink) * h)))
+    x, y, w, h = (float(v) * scale for v in np.asarray(box, dtype=float).ravel()[:4])
+    x0 = max(0, math.floor(x + shrink * w))
+    y0 = max(0, math.floor(y + shrink * h))
+    x1 = min(image.shape[1], math.ceil(x + (1 - shrink) * w))
+    y1 = min(image.shape[0], math.ceil(y + (1 - shrink) * h))
     if x1 - x0 < 2 or y1 - y0 < 2 * parts:
         return None
     step = 2 if (x1 - x0) * (y1 - y0) > 400 else 1      # subsample large boxes
     channels = image.shape[2] if image.ndim == 3 else 1
-    edges = np.linspace(y0, y1, parts + 1).round().astype(int)
+    edges = [y0, y1] if parts == 1 else np.linspace(y0, y1, parts + 1).round().astype(int)
+    offsets = np.arange(channels, dtype=np.intp) * BINS
     hists = []
     for a, b in zip(edges[:-1], edges[1:]):
-        patch = image[a:b:step, x0:x1:step].reshape(-1, channels)
-        q = (patch.astype(np.int32) * BINS) >> 8
-        hists += [np.bincount(q[:, c], minlength=BINS) for c in range(channels)]
-    hist = np.stack(hists).astype(float)
+        # the bin of an 8-bit value is its top four bits; one count over the channels' bins
+        q = (image[a:b:step, x0:x1:step].reshape(-1, channels) >> _SHIFT) + offsets
+        hists.append(np.bincount(q.ravel(), minlength=channels * BINS).reshape(channels, BINS))
+    hist = np.concatenate(hists).astype(float)
     hist += _EPS * hist.sum(axis=1, keepdims=True) + 1e-9
     return hist / hist.sum(axis=1, keepdims=True)
 
@@ -43,3 +47,16 @@ def kl_divergence(p: np.ndarray | None, q: np.ndarray | None) -> float:
     if p is None or q is None:
         return float("inf")
     return float(np.sum(p * np.log(p / q)))
+
+
+def kl_matrix(ps: list, qs: list, cap: float = np.inf) -> np.ndarray:
+    """``(len(ps), len(qs))`` matrix of ``min(KL(p || q), cap)`` (``cap`` where either is ``None``)."""
+    out = np.full((len(ps), len(qs)), float(cap))
+    i = [k for k, p in enumerate(ps) if p is not None]
+    j = [k for k, q in enumerate(qs) if q is not None]
+    if i and j:
+        P = np.stack([ps[k].ravel() for k in i])
+        Q = np.stack([qs[k].ravel() for k in j])
+        K = np.sum(P * np.log(P), axis=1)[:, None] - P @ np.log(Q).T
+        out[np.ix_(i, j)] = np.minimum(K, cap)
+    return out

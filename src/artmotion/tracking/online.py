@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from artmotion.geometry import iou_matrix
-from artmotion.tracking.appearance import kl_divergence, rgb_histogram
+from artmotion.tracking.appearance import kl_matrix, rgb_histogram
 from artmotion.tracking.association import INF, assign, iou_cost
 from artmotion.tracking.camera import CameraMotion
 from artmotion.tracking.config import TrackerConfig
@@ -374,7 +374,7 @@ class OnlineTracker:
             cost, _ = iou_cost(pred[rows], dets[cols, :4], gate)
             if cfg.app_weight > 0 or cfg.reacquire_kl > 0:
                 hs = [self._det_hist(frame, j) for j in cols]
-                K = np.array([[min(kl_divergence(tracks[i].hist, h), 3.0) for h in hs] for i in rows])
+                K = kl_matrix([tracks[i].hist for i in rows], hs, cap=3.0)
                 if cfg.app_weight > 0:
                     cost = np.where(cost < INF, cost + cfg.app_weight * K, INF)
                 if cfg.reacquire_kl > 0:

@@ -45,6 +45,9 @@ COMPONENTS = {
     "delayed": (False, True, "entry: a new landmark waits for Algorithm 1 (thesis) instead of entering as static"),
     "joint_shift": (True, False, "a moving landmark's line/centre shift in the state (off: joint taken as exact)"),
     "joint_shape": (True, False, "its radius or direction in the state too, from the fit's covariance (off: as fitted)"),
+    "joint_curve": (True, False, "the joint as a path of constant curvature (line and circle alike), "
+                                 "its curvature in the state (off: the decided line or circle)"),
+    "motion_var": (0.01, 0.1, "acceleration noise of a moving landmark along its path (m^2/s^4)"),
     "undecided_var": (0.0, 0.01, "undecided landmarks drift as a random walk (0.01 m^2/step x P(moving))"),
     "gating": (True, False, "chi^2 gate on every sighting"),
     "gate": (0.01, 0.001, "the gate's false-rejection probability (1 %; 0.1 % was the first default)"),

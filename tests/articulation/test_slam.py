@@ -134,7 +134,7 @@ def test_articulated_beats_ekf_with_moving_landmarks():
     assert a["rotation_error"]["mean"] < e["rotation_error"]["mean"]
     # no delay for the static majority: better than the thesis's Algorithm 2 and consistent
     assert a["translation_error"]["mean"] < d["translation_error"]["mean"]
-    assert a["nees"]["mean"] < min(10.0, d["nees"]["mean"])
+    assert a["nees"]["mean"] < 6.0  # the robot pose's NEES has mean 3 when consistent
     assert a["translation_error"]["low"] <= a["translation_error"]["mean"] <= a["translation_error"]["high"]
 
 
@@ -233,3 +233,61 @@ def test_shape_covariance_matches_the_scatter_of_fits():
     # a shorter arc pins the radius down less
     short = circ.shape_covariance(P[: n // 3], sigma, gauge=0.1)
     assert short[2, 2] > 4 * C[2, 2]
+
+
+@pytest.mark.parametrize("curvature", [0.0, 1e-4, 0.8, -1.2])
+def test_curve_joint_position_jacobian_and_coordinate(curvature):
+    """A path of constant curvature (line and circle alike): the Jacobian of ``m(s)`` in ``(s, dx,
+    dy, dphi, dkappa)`` matches finite differences, also near and at zero curvature (the series),
+    and ``coordinate`` inverts ``position``."""
+    from artmotion.articulation.slam.landmarks import Joint
+
+    j = Joint("curve", np.array([1.0, 2.0]), np.array([math.cos(0.3), math.sin(0.3)]), curvature=curvature)
+    f = lambda v: j.position_shaped(v[0], v[1:])[0]  # noqa: E731
+    for s in (0.0, 1e-3, 0.7, -1.3):
+        x, h = np.array([s, 0.01, -0.02, 0.05, 0.003]), 1e-6
+        _, J = j.position_shaped(x[0], x[1:])
+        for k in range(5):
+            e = np.zeros(5)
+            e[k] = h
+            assert np.allclose((f(x + e) - f(x - e)) / (2 * h), J[:, k], atol=1e-6)
+        assert abs(j.coordinate(j.position(s)[0]) - s) < 1e-9
+    if curvature > 0.1:  # a circle of radius 1/curvature about the centre left of the tangent
+        centre = j.origin + np.array([-j.direction[1], j.direction[0]]) / curvature
+        for s in (0.5, 2.0):
+            assert np.isclose(np.linalg.norm(j.position(s)[0] - centre), 1.0 / curvature)
+
+
+def test_curve_fit_recovers_circle_and_line():
+    """Gauss-Newton from a straight guess bends to the curvature of noisy points on an arc, stays
+    straight on a line, and its covariance is smaller where the points say more."""
+    from artmotion.articulation.slam.landmarks import Joint
+
+    rng = np.random.default_rng(1)
+    a = np.linspace(0.2, 1.6, 60)
+    P = np.array([3.0, -1.0]) + 1.1 * np.column_stack([np.cos(a), np.sin(a)]) + rng.normal(0, 0.03, (60, 2))
+    d = (P[-1] - P[0]) / np.linalg.norm(P[-1] - P[0])
+    fit, C = Joint("curve", P.mean(axis=0), d)._curve_fit(P, 0.03, 0.15)
+    assert abs(fit.curvature - 1 / 1.1) < 3 * math.sqrt(C[3, 3]) and abs(fit.curvature - 1 / 1.1) < 0.1
+    t = np.linspace(0, 3, 50)
+    L = np.column_stack([t, 0.5 * t]) + rng.normal(0, 0.03, (50, 2))
+    fit, C_line = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5))._curve_fit(L, 0.03, 0.15)
+    assert abs(fit.curvature) < 3 * math.sqrt(C_line[3, 3]) and abs(fit.curvature) < 0.1
+    _, C_short = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5))._curve_fit(L[:15], 0.03, 0.15)
+    assert C_short[3, 3] > 4 * C_line[3, 3]
+    anchored = fit.anchored(L[-1])
+    assert abs(anchored.coordinate(L[-1])) < 1e-9
+
+
+def test_curve_joints_in_articulated_slam():
+    """With ``joint_curve`` (the default) the decided moving landmarks enter as curves (6 state
+    variables each; the block keeps Algorithm 1's name) and the filter still tracks the robot."""
+    w = make_scenario("warehouse", seed=3)
+    sim = simulate(w, 400, seed=4)
+    out = run_slam(sim, "articulated", joint_curve=True)
+    f = out["filter"]
+    moving = [b for b in f.blocks.values() if b.kind != "static"]
+    assert moving and all(b.joint.kind == "curve" and b.dim == 6 for b in moving)
+    gated = run_slam(sim, "ekf_gated")
+    err = pose_errors(out["poses"], sim["poses"])["translation_error"]
+    assert err < 2 * pose_errors(gated["poses"], sim["poses"])["translation_error"]

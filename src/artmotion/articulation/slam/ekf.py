@@ -108,9 +108,9 @@ class _Block:
         if self.joint is None:
             return s[:2], np.eye(2)
         J = np.zeros((2, self.dim))
-        if self.dim == 5:
-            m, Js = self.joint.position_shaped(float(s[0]), s[2:5])
-            J[:, 0], J[:, 2:5] = Js[:, 0], Js[:, 1:]
+        if self.dim >= 5:
+            m, Js = self.joint.position_shaped(float(s[0]), s[2:self.dim])
+            J[:, 0], J[:, 2:] = Js[:, 0], Js[:, 1:]
             return m, J
         m, Jq = self.joint.position(float(s[0]))
         J[:, 0] = Jq
@@ -136,7 +136,12 @@ class EKFSlam:
     (with ``joint_shift``) also puts the joint's radius (revolute) or direction (prismatic) in the
     state: shift and shape then start with the fit's own covariance (Gauss-Newton on the sightings
     Algorithm 1 fitted, :meth:`~artmotion.articulation.slam.landmarks.Joint.shape_covariance`)
-    instead of ``point_noise``, and every sighting refines them.
+    instead of ``point_noise``, and every sighting refines them. ``joint_curve`` (with both, the
+    default; chosen by leave-one-world-out) puts the decided line or circle in the state as a path
+    of constant curvature anchored at the current sighting — ``(s, s', dx, dy, dphi, dkappa)``, arc
+    length, its rate, the anchor's shift, the tangent's turn and the curvature's change — so a
+    line may bend and an arc straighten as sightings come (Algorithm 1 often cannot tell a line
+    from an arc over the stretch it saw).
 
     ``gating`` (default: on when articulated) applies a chi^2 (2 dof) validation gate that a
     consistent sighting fails with probability ``gate`` (1 %: chosen by leave-one-world-out); a
@@ -149,7 +154,7 @@ class EKFSlam:
                  point_noise: float = 0.15, max_radius: float = 5.0, motion_var: float = 0.01,
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
                  undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01,
-                 joint_shape: bool = True):
+                 joint_shape: bool = True, joint_curve: bool = True):
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])
@@ -165,7 +170,8 @@ class EKFSlam:
         self.P[:3, :3] = np.eye(3) * 1e-6
         self.n = 3
         self.blocks: dict[int, _Block] = {}
-        self.models = LandmarkModels(dt, threshold, min_samples, point_noise, max_radius, accel)
+        self.models = LandmarkModels(dt, threshold, min_samples, point_noise, max_radius, accel,
+                                     curve=joint_curve and joint_shift and joint_shape)
         self.decided_at: dict[int, int] = {}
         self.motion_var = motion_var
         self.gating = articulated if gating is None else gating
@@ -338,13 +344,13 @@ class EKFSlam:
         # the joint was fitted to points seen from the robot's estimates: its place shares the
         # robot's uncertainty (like a static landmark's) plus the fit's own; with ``joint_shape``
         # its radius or direction is a state too, starting with the fit's covariance
-        dim = 5 if self.joint_shape and d.shape_cov is not None else 4
+        dim = 2 + len(d.shape_cov) if self.joint_shape and d.shape_cov is not None else 4
         b = _Block(d.kind, self.n, dim, d.joint)
         b.F, b.Q = np.eye(dim), np.zeros((dim, dim))
         b.F[:2, :2], b.Q[:2, :2] = F, Q
         extra = np.zeros((dim, dim))
         extra[0, 0], extra[1, 1] = Gq @ Pm @ Gq, d.rate_var
-        if dim == 5:
+        if dim >= 5:
             extra[2:, 2:] = d.shape_cov
         else:
             extra[2:, 2:] = self.models.point_noise**2 * np.eye(2)

@@ -56,7 +56,11 @@ def assign(cost: np.ndarray) -> list[tuple[int, int]]:
     for r, c in _groups(allowed):
         sub = cost[np.ix_(r, c)]
         pairs: Iterable[tuple[int, int]]
-        if max(sub.shape) > 16:
+        if len(r) == 1:          # one track: its cheapest detection (what the Hungarian finds)
+            pairs = [(0, int(np.argmin(sub[0])))]
+        elif len(c) == 1:        # one detection: its cheapest track
+            pairs = [(int(np.argmin(sub[:, 0])), 0)]
+        elif max(sub.shape) > 16:
             from scipy.optimize import linear_sum_assignment
 
             pairs = zip(*linear_sum_assignment(sub))
@@ -67,26 +71,27 @@ def assign(cost: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _groups(allowed: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Connected components (row indices, column indices) of the bipartite graph of allowed pairs."""
+    """Connected components (row indices, column indices) of the bipartite graph of allowed pairs
+    (union-find over the pairs; rows are nodes ``0..n-1``, columns ``n..n+m-1``)."""
     n, m = allowed.shape
-    row_seen = np.zeros(n, bool)
-    groups = []
-    for start in np.flatnonzero(allowed.any(axis=1)):
-        if row_seen[start]:
-            continue
-        rows = np.zeros(n, bool)
-        rows[start] = True
-        cols = np.zeros(m, bool)
-        while True:
-            new_cols = allowed[rows].any(axis=0) & ~cols
-            cols |= new_cols
-            new_rows = allowed[:, cols].any(axis=1) & ~rows
-            if not new_rows.any() and not new_cols.any():
-                break
-            rows |= new_rows
-        row_seen |= rows
-        groups.append((np.flatnonzero(rows), np.flatnonzero(cols)))
-    return groups
+    parent = list(range(n + m))
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for i, j in zip(*np.nonzero(allowed)):
+        a, b = root(int(i)), root(n + int(j))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    members: dict[int, tuple[list[int], list[int]]] = {}
+    for i in np.flatnonzero(allowed.any(axis=1)).tolist():
+        members.setdefault(root(i), ([], []))[0].append(i)
+    for j in np.flatnonzero(allowed.any(axis=0)).tolist():
+        members[root(n + j)][1].append(j)
+    return [(np.array(r), np.array(c)) for r, c in members.values()]
 
 
 def hungarian(cost: np.ndarray) -> list[tuple[int, int]]:

@@ -258,7 +258,7 @@ def test_curve_joint_position_jacobian_and_coordinate(curvature):
             assert np.isclose(np.linalg.norm(j.position(s)[0] - centre), 1.0 / curvature)
 
 
-def test_curve_fit_recovers_circle_and_line():
+def test_fit_curve_recovers_circle_and_line():
     """Gauss-Newton from a straight guess bends to the curvature of noisy points on an arc, stays
     straight on a line, and its covariance is smaller where the points say more."""
     from artmotion.articulation.slam.landmarks import Joint
@@ -267,13 +267,13 @@ def test_curve_fit_recovers_circle_and_line():
     a = np.linspace(0.2, 1.6, 60)
     P = np.array([3.0, -1.0]) + 1.1 * np.column_stack([np.cos(a), np.sin(a)]) + rng.normal(0, 0.03, (60, 2))
     d = (P[-1] - P[0]) / np.linalg.norm(P[-1] - P[0])
-    fit, C = Joint("curve", P.mean(axis=0), d)._curve_fit(P, 0.03, 0.15)
+    fit, C = Joint("curve", P.mean(axis=0), d).fit_curve(P, 0.03, 0.15)
     assert abs(fit.curvature - 1 / 1.1) < 3 * math.sqrt(C[3, 3]) and abs(fit.curvature - 1 / 1.1) < 0.1
     t = np.linspace(0, 3, 50)
     L = np.column_stack([t, 0.5 * t]) + rng.normal(0, 0.03, (50, 2))
-    fit, C_line = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5))._curve_fit(L, 0.03, 0.15)
+    fit, C_line = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5)).fit_curve(L, 0.03, 0.15)
     assert abs(fit.curvature) < 3 * math.sqrt(C_line[3, 3]) and abs(fit.curvature) < 0.1
-    _, C_short = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5))._curve_fit(L[:15], 0.03, 0.15)
+    _, C_short = Joint("curve", L[0], np.array([1.0, 0.5]) / math.hypot(1.0, 0.5)).fit_curve(L[:15], 0.03, 0.15)
     assert C_short[3, 3] > 4 * C_line[3, 3]
     anchored = fit.anchored(L[-1])
     assert abs(anchored.coordinate(L[-1])) < 1e-9

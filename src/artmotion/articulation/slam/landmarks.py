@@ -102,7 +102,7 @@ class Joint:
         ``(c_x, c_y, r)``; the points' spread and 45 degrees for a line's shift and angle."""
         P = np.asarray(points, dtype=float)[:, :2]
         if self.kind == "curve":
-            return self._curve_fit(P, sigma, gauge, steps=0)[1]
+            return self.fit_curve(P, sigma, gauge, steps=0)[1]
         if self.kind == "revolute":
             diff = P - self.origin
             u = diff / np.maximum(np.linalg.norm(diff, axis=1, keepdims=True), 1e-9)
@@ -121,7 +121,7 @@ class Joint:
         out[:2, :2] += gauge**2 * np.outer(d, d)
         return out
 
-    def _curve_fit(self, P: np.ndarray, sigma: float, gauge: float, steps: int = 5) -> tuple[Joint, np.ndarray]:
+    def fit_curve(self, P: np.ndarray, sigma: float, gauge: float, steps: int = 5) -> tuple[Joint, np.ndarray]:
         """Gauss-Newton on the points' distances to the curve in ``(shift along the anchor's
         normal, dphi, dkappa)`` with a weak prior (std the points' spread, 45 degrees, and a
         curvature of 1/m), ``steps`` iterations: the refined curve and the covariance of its
@@ -292,5 +292,5 @@ class LandmarkModels:
         else:
             assert joint.direction is not None
             curve = Joint("curve", joint.origin + q * joint.direction, joint.direction.copy())
-        curve, _ = curve._curve_fit(np.asarray(X, dtype=float)[:, :2], sigma, self.point_noise)
+        curve, _ = curve.fit_curve(np.asarray(X, dtype=float)[:, :2], sigma, self.point_noise)
         return curve.anchored(m), 0.0, rate, rate_var

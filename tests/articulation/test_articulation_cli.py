@@ -1,6 +1,7 @@
 """``artmotion articulation fit`` and ``artmotion slam simulate`` through the root CLI."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -108,6 +109,15 @@ def test_slam_simulate_json_and_plot(tmp_path, run_cli):
         t = res[k]["translation_error"]
         assert 0 <= t["mean"] and res[k]["rotation_error"]["mean"] >= 0 and res[k]["nees"]["mean"] > 0
     assert png.exists() and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_slam_simulate_shorter_than_the_error_stride(run_cli):
+    """Fewer steps than the pose-pair stride (5): the first and last poses still give an error."""
+    code, out, err = run_cli("slam", "simulate", "--steps", "2", "--runs", "1", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert all(math.isfinite(v["translation_error"]["mean"]) for v in res.values() if isinstance(v, dict) and "translation_error" in v)
+    assert math.isfinite(res["articulated"]["translation_error"]["mean"])
 
 
 def test_slam_simulate_named_world(run_cli):

@@ -197,8 +197,9 @@ def test_cli_describe_bad_input(tmp_path, run_cli):
 
 def test_parse_classes():
     assert parse_classes(["tool", "2=cart"]) == ("tool", {2: "cart"})
-    with pytest.raises(InputError):
-        parse_classes(["x=cart"])
+    for bad in (["x=cart"], [""], ["car1"], ["2=car1"]):  # a bare name is checked like ID=NAME's
+        with pytest.raises(InputError, match="expected NAME or ID=NAME"):
+            parse_classes(bad)
 
 
 def test_three_walking_together_form_one_group():

@@ -202,3 +202,7 @@ def test_bad_inputs(split, run_cli, tmp_path):
     _one_line(*run_cli("pose", "predict", junk, split / "test", "--out", tmp_path / "p.csv")[::2], "junk.model")
     assert not (tmp_path / "p.csv").exists()
     assert not (tmp_path / "m.npz").exists()
+    # a bad Euler convention or a column named twice: refused before any training
+    for opts, word in ((("--euler", "abc"), "--euler"), (("--euler", "xyZ"), "--euler"),
+                       (("--orientation", "yaw,yaw,yaw"), "twice")):
+        _one_line(*run_cli("pose", "eval", split / "test", split / "test.csv", *opts)[::2], word)

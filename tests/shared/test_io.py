@@ -30,6 +30,7 @@ def test_read_mot_pads_and_roundtrips(tmp_path):
         ("1,-1,10,20,0,40,0.9\n", "non-positive box size", 1),
         ("1,-1,10,20\n", "expected 6 to 10 values", 1),
         ("0,-1,10,20,5,5,1\n", "positive integer", 1),
+        ("1,-1,10,20,5,5,1\n2,,10,20,5,5,1\n", "empty field 2", 2),  # would shift every column
     ],
 )
 def test_read_mot_errors_name_file_and_line(tmp_path, text, needle, line):
@@ -38,6 +39,11 @@ def test_read_mot_errors_name_file_and_line(tmp_path, text, needle, line):
         read_mot(p)
     msg = str(exc.value)
     assert needle in msg and f"det.txt:{line}:" in msg and "\n" not in msg
+
+
+def test_read_mot_trailing_comma_and_spaces(tmp_path):
+    p = write(tmp_path, "1,-1,10,20,5,5,0.5,\n2, -1, 10, 20, 5, 5\n")
+    np.testing.assert_allclose(read_mot(p)[:, :7], [[1, -1, 10, 20, 5, 5, 0.5], [2, -1, 10, 20, 5, 5, 1]])
 
 
 def test_read_mot_order_and_empty(tmp_path):

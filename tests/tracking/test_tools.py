@@ -189,3 +189,26 @@ def test_loading_a_damaged_model(tmp_path):
         ToolDetector.load(p)
     with pytest.raises(InputError, match="no such file"):
         ToolDetector.load(tmp_path / "missing.pt")
+
+
+@pytest.mark.parametrize("field,value", [("frame_shape", [0, 0]), ("frame_shape", [1_000_000, 1_000_000]),
+                                         ("threshold", float("nan")), ("threshold", 2.0),
+                                         ("max_heads", 0), ("max_heads", 10**9)])
+def test_loading_a_model_with_absurd_settings(tmp_path, field, value):
+    """A model file whose settings no training writes (a frame size of 0 would divide by zero, a
+    huge one exhaust memory) is refused on loading, not at the first frame."""
+    import torch
+
+    from artmotion.tracking.instruments import net
+
+    det = ToolDetector()
+    det.model_, det.frame_shape_ = net.HeadNet(det.width), (288, 384)
+    good = tmp_path / "good.pt"
+    det.save(good)
+    assert ToolDetector.load(good).frame_shape_ == (288, 384)
+    state = torch.load(good, weights_only=True)
+    state[field] = value
+    bad = tmp_path / "bad.pt"
+    torch.save(state, bad)
+    with pytest.raises(InputError, match="damaged tool model"):
+        ToolDetector.load(bad)

@@ -58,14 +58,15 @@ def parse_classes(specs: list[str] | None, default: str = "person") -> tuple[str
     per_track: dict[int, str] = {}
     for spec in specs or []:
         spec = spec.strip()
-        if "=" in spec:
-            tid, _, name = spec.partition("=")
-            try:
+        try:
+            if "=" in spec:
+                tid, _, name = spec.partition("=")
                 per_track[int(tid)] = _class_word(name)
-            except ValueError:
-                raise InputError(f"--class {spec!r}: expected NAME or ID=NAME") from None
-        else:
-            default = _class_word(spec)
+            else:
+                default = _class_word(spec)
+        except ValueError:
+            raise InputError(f"--class {spec!r}: expected NAME or ID=NAME (a name of letters, spaces "
+                             "and hyphens)") from None
     return default, per_track
 
 

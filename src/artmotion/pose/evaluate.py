@@ -48,6 +48,13 @@ class Columns:
         for n in orientation:
             if n not in names:
                 raise InputError(f"orientation column {n!r} not among the labels {names}")
+        if len(set(orientation)) != len(orientation):
+            raise InputError(f"--orientation names a column twice: {orientation}")
+        # SciPy's rule: three axes, all extrinsic (xyz) or all intrinsic (XYZ), none twice in a row
+        if not (len(euler) == 3 and (set(euler) <= set("xyz") or set(euler) <= set("XYZ"))
+                and euler[0] != euler[1] and euler[1] != euler[2]):
+            raise InputError(f"--euler {euler!r}: expected three axes of 'xyz' (extrinsic) or 'XYZ' (intrinsic), "
+                             "no axis twice in a row (e.g. ZYX)")
         idx = [names.index(n) for n in orientation]
         return cls(idx, [i for i in range(len(names)) if i not in idx], euler)
 

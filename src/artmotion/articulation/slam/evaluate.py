@@ -72,7 +72,8 @@ def pose_errors(est: np.ndarray, true: np.ndarray, lag: int = 0, stride: int = 5
     An increment is the pose of step ``j`` seen from step ``i``; its error is the difference between
     the estimated and the true increment (translation: Euclidean norm; rotation: absolute angle).
     ``lag > 0`` averages over increments of ``lag`` steps; ``lag = 0`` over all pairs ``i < j``
-    (every ``stride``-th pose), which weighs local and global consistency alike.
+    (every ``stride``-th pose; a run shorter than ``stride`` steps compares its first and last pose),
+    which weighs local and global consistency alike.
     """
     est = np.asarray(est, dtype=float)
     true = np.asarray(true, dtype=float)
@@ -80,7 +81,7 @@ def pose_errors(est: np.ndarray, true: np.ndarray, lag: int = 0, stride: int = 5
         i = np.arange(0, len(est) - lag)
         j = i + lag
     else:
-        idx = np.arange(0, len(est), stride)
+        idx = np.arange(0, len(est), max(1, min(stride, len(est) - 1)))
         i, j = np.triu_indices(len(idx), k=1)
         i, j = idx[i], idx[j]
 

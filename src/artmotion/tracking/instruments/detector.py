@@ -24,6 +24,8 @@ from artmotion.errors import InputError, check_range, need_package
 __all__ = ["ToolDetector", "need_torch"]
 
 _FORMAT = "artmotion-tool-detector-1"
+_MAX_SIDE = 8192    # the largest frame side a model is trained on (8K video)
+_MAX_HEADS = 100
 
 
 def scale_to(trained: tuple[int, int], frame: tuple[int, int], tolerance: float = 0.05) -> float:
@@ -76,6 +78,8 @@ class ToolDetector:
         h, w = shape[:2]
         if h < 4 * net.STRIDE or w < 4 * net.STRIDE:
             raise InputError(f"frames of {w}x{h} are too small")
+        if max(h, w) > _MAX_SIDE:
+            raise InputError(f"frames of {w}x{h} are too large (at most {_MAX_SIDE} pixels a side)")
         torch.manual_seed(self.seed)
         rng = np.random.default_rng(self.seed)
         model = net.HeadNet(self.width)
@@ -186,6 +190,11 @@ class ToolDetector:
             det.frame_shape_ = (h, w)
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             raise InputError(f"damaged tool model ({type(exc).__name__})", path=p) from None
+        # what training writes: a score in (0, 1), a few heads, the size frames were scaled to
+        if not (0.0 < det.threshold < 1.0 and 1 <= det.max_heads <= _MAX_HEADS
+                and all(4 * net.STRIDE <= v <= _MAX_SIDE for v in det.frame_shape_)):
+            raise InputError(f"damaged tool model (threshold {det.threshold}, max_heads {det.max_heads}, "
+                             f"frame_shape {det.frame_shape_})", path=p)
         if not all(bool(torch.isfinite(t).all()) for t in model.state_dict().values() if t.is_floating_point()):
             raise InputError("damaged tool model (NaN or infinite weights)", path=p)
         model.eval()

@@ -82,3 +82,15 @@ def test_events_roundtrip_and_validation(tmp_path):
     bad2 = write(tmp_path, "not json\n", "bad2.jsonl")
     with pytest.raises(InputError, match="not JSON"):
         read_events(bad2)
+
+
+def test_check_writable(tmp_path):
+    from artmotion.io import check_writable
+
+    check_writable(None, tmp_path / "new" / "deeper" / "out.txt")  # folders to be made: fine
+    assert not (tmp_path / "new").exists()  # nothing created
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(InputError, match="a file is where a folder would be"):
+        check_writable(tmp_path / "f" / "out.txt")
+    with pytest.raises(InputError, match="is a folder"):
+        check_writable(tmp_path)

@@ -74,6 +74,24 @@ def test_1_damaged_media_is_never_a_success(tmp_path):
     assert not list((tmp_path / "runs").glob("*")) if (tmp_path / "runs").exists() else True
 
 
+def test_1_an_image_bomb_is_refused_from_its_header(tmp_path):
+    """A frame whose header claims 20000 x 20000 pixels (a PNG of a few hundred bytes that OpenCV
+    would spend seconds and 1.2 GB decoding): one line naming it, before any pixel is decoded."""
+    import struct
+    import zlib
+
+    seq = inp.sequence(tmp_path / "seq")
+    frame = seq / "img1" / "000001.jpg"
+    ok, png = cv2.imencode(".png", np.zeros((30, 50, 3), np.uint8))
+    data = bytearray(png.tobytes())
+    data[16:24] = struct.pack(">II", 20000, 20000)
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+    frame.write_bytes(bytes(data))
+    code, _, err = call("track", seq, "--out", tmp_path / "r.txt")
+    assert_one_line_error(code, err, "000001.jpg", "20000x20000")
+    assert not (tmp_path / "r.txt").exists()
+
+
 @pytest.mark.parametrize("damage", ["cut", "zeros"])
 def test_1_jpeg_damage_inside_the_image_data_is_an_error(tmp_path, damage):
     """Bytes cut from, or zeros put into, the middle of a JPEG's image data keep its structure
@@ -175,6 +193,23 @@ def test_3_bad_options_are_one_line(tmp_path, args, needle):
     if needle == "--seed":
         assert "[0, 4294967295]" in err              # NumPy's rule, stated
     assert sorted(tmp_path.iterdir()) == before       # a failed command creates nothing
+
+
+@pytest.mark.parametrize("where", ["events", "out"])
+def test_3_an_output_that_cannot_be_written_fails_before_any_is(tmp_path, where):
+    """``track --out A --events B`` where B (or A) lies under a file: one line, exit 2, and
+    neither output written — the destinations are checked before the work."""
+    seq = inp.sequence(tmp_path / "seq")
+    blocker = tmp_path / "afile"
+    blocker.write_text("a file, not a folder")
+    good, bad = tmp_path / "good.txt", blocker / "x.txt"
+    out, events = (good, bad) if where == "events" else (bad, good)
+    code, _, err = call("track", seq, "--out", out, "--events", events)
+    assert_one_line_error(code, err, "afile")
+    assert not good.exists()
+    code, _, err = call("track", seq, "--out", good, "--video", tmp_path / "ann.png")
+    assert_one_line_error(code, err, "ann.png", ".mp4")
+    assert not good.exists()
 
 
 def test_3_huge_trajectory_values_are_one_line(tmp_path):

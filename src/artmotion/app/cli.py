@@ -31,6 +31,10 @@ def _db_path(db: Optional[Path], must_exist: bool = False) -> Path:
         check_index(path)
     elif must_exist:
         raise InputError("no such index (add runs with 'artmotion index add')", path=path)
+    else:
+        from artmotion.io import check_writable
+
+        check_writable(path)  # a new index: its folder must take it
     return path
 
 

@@ -183,6 +183,10 @@ def simulate(
     check_seed(seed)
     if plot is not None and plot.suffix.lower() != ".png":
         raise InputError("--plot must name a .png file", path=plot)
+    if plot is not None:
+        from artmotion.io import check_writable
+
+        check_writable(plot)  # before the simulation
     res = monte_carlo(runs=runs, steps=steps, world=world, seed=seed, backends=names, landmarks=counts,
                       keep_last=plot is not None)
     last = res.pop("_last", None)

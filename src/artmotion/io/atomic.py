@@ -28,6 +28,25 @@ def _prepare(path: str | os.PathLike) -> Path:
     return path
 
 
+def check_writable(*paths: str | os.PathLike | None) -> None:
+    """Before long work: an :class:`InputError` naming the first output ``path`` (``None``s are
+    skipped) that cannot be written — an existing folder where a file goes, or a parent that is a
+    file or not writable — without creating anything."""
+    for p in paths:
+        if p is None:
+            continue
+        path = Path(p)
+        if path.is_dir():
+            raise InputError("is a folder, not a file", path=path)
+        parent = path.parent
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if not parent.is_dir():
+            raise InputError("cannot write: a file is where a folder would be", path=parent)
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise InputError("cannot write: permission denied", path=parent)
+
+
 def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
     """``exc`` naming ``path`` where it names the temporary ``tmp`` (a message never shows a
     temporary name)."""

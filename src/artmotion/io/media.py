@@ -133,6 +133,35 @@ def check_image_bytes(buf: np.ndarray, path) -> None:
         raise InputError(problem, path=path)
 
 
+#: the most pixels an image may have (16384 x 8192): more is a decompression bomb, not a frame —
+#: decoding a 20000 x 20000 PNG of 1 MB takes OpenCV many seconds and 1.2 GB
+MAX_IMAGE_PIXELS = 2**27
+
+
+def _header_size(buf: np.ndarray) -> tuple[int, int] | None:
+    """``(width, height)`` from a PNG's or JPEG's header (no pixel decoded), else ``None``
+    (OpenCV then decides)."""
+    head = buf[:24].tobytes()
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    if head[:2] != b"\xff\xd8":
+        return None
+    data = buf[:65536].tobytes()  # the frame header comes before the scan
+    i = 2
+    while i + 9 <= len(data) and data[i] == 0xFF:
+        marker = data[i + 1]
+        if marker == 0xFF:      # fill byte
+            i += 1
+            continue
+        length = int.from_bytes(data[i + 2:i + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):   # SOFn: precision, height, width
+            return int.from_bytes(data[i + 7:i + 9], "big"), int.from_bytes(data[i + 5:i + 7], "big")
+        if marker == 0xDA or length < 2:   # the scan began (or a broken segment): no frame header seen
+            return None
+        i += 2 + length
+    return None
+
+
 def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     """Read and check an image file (see the module docstring); ``flags`` are OpenCV's imread
     flags (default ``IMREAD_COLOR``; ``IMREAD_REDUCED_COLOR_2`` etc. decode it smaller). Returns
@@ -155,6 +184,10 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     if not len(buf):
         raise InputError("empty file", path=path)
     check_image_bytes(buf, path)
+    size = _header_size(buf)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise InputError(f"image of {size[0]}x{size[1]} pixels: larger than artmotion reads "
+                         f"({MAX_IMAGE_PIXELS // 2**20} megapixels at most)", path=path)
     img, damage = _decode(buf, cv2.IMREAD_COLOR if flags is None else flags)
     if damage:
         raise InputError(f"corrupt image data ({damage})", path=path)

@@ -103,10 +103,13 @@ def grounding_eval(
     as_json: bool = typer.Option(False, "--json", help="Print the accuracies as JSON."),
 ):
     """Retrieval (3-fold CV) and unseen colour–shape pairs, compositional vs paired model."""
+    from artmotion.io import check_writable
     from artmotion.language.grounding.evaluate import evaluate, format_report
 
     check_seed(seed)
-    report = evaluate(dataset, out=out if out is not None else Path(dataset) / "eval", seed=seed)
+    out = out if out is not None else Path(dataset) / "eval"
+    check_writable(out / "report.json")  # before the evaluation
+    report = evaluate(dataset, out=out, seed=seed)
     if as_json:
         brief = {m: {part: report[m][part] for part in ("retrieval", "unseen")} for m in ("compositional", "paired")}
         typer.echo(json.dumps(brief, indent=1))

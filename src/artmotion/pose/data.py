@@ -111,6 +111,8 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
         stem = Path(row[0]).stem
         if not stem:
             raise InputError("empty image name", path=path, line=lineno)
+        if stem in boxes:
+            raise InputError(f"a second box for image {row[0]!r}", path=path, line=lineno)
         x, y = (cell_number(c, n, path, lineno, -1e6, 1e6) for n, c in zip(("x", "y"), row[1:3]))
         w, h, fw, fh = (cell_number(c, n, path, lineno, 1e-3, 1e6) for n, c in zip(BOX_COLUMNS[3:], row[3:7]))
         boxes[stem], sizes[stem] = (x, y, w, h), (fw, fh)

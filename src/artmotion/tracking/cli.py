@@ -61,15 +61,15 @@ def track_command(
 ) -> None:
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
     import sys
-    from pathlib import Path
 
-    from artmotion.errors import InputError
-    from artmotion.io import write_events, write_mot
+    from artmotion.io import check_writable, write_events, write_mot
     from artmotion.tracking import DEFAULT_EXPERTS, track
 
-    for path in (out, events, video):
-        if path and Path(path).is_dir():
-            raise InputError("is a folder; give a file name", path=path)
+    if video and not video.lower().endswith(".mp4"):
+        from artmotion.errors import InputError
+
+        raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
+    check_writable(out, events, video)  # before the work, so that no output is written when one cannot be
     if progress is None:
         progress = sys.stderr.isatty()
     res = track(source, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,

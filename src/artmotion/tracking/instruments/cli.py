@@ -47,6 +47,9 @@ def train(
     check_range("--epochs", epochs, 1, 1000, integer=True)
     check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     check_seed(seed)
+    from artmotion.io import check_writable
+
+    check_writable(model)  # before the training
     from artmotion.tracking.instruments.detector import ToolDetector, need_torch
 
     need_torch()

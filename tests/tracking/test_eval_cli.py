@@ -77,3 +77,14 @@ def test_missing_file_and_bad_threshold(run_cli, files, tmp_path):
     assert code == 2 and "nope.txt: no such file" in err and err.count("\n") == 1
     code, _, err = run_cli("eval", gt, res, "--iou", "1.5")
     assert code == 2 and "IoU threshold" in err
+
+
+def test_unknown_mot17_class_under_mot17_rules(run_cli, tmp_path):
+    """A class MOT16/17 does not know (99) is an error under ``--rules mot17``, as in TrackEval, not
+    a silently ignored box; with ``auto`` such a file is read as MOT15 (no class column)."""
+    gt = tmp_path / "gt.txt"
+    gt.write_text("1,1,10,10,20,40,1,99,1\n2,1,10,10,20,40,1,1,1\n")
+    code, out, err = run_cli("eval", gt, gt, "--rules", "mot17")
+    assert code == 2 and out == "" and "gt.txt: class 99 (frame 1) is not a MOT16/17 class" in err
+    code, out, err = run_cli("eval", gt, gt, "--json")
+    assert code == 0 and '"rules": "mot15"' in out

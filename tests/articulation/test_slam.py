@@ -235,7 +235,7 @@ def test_shape_covariance_matches_the_scatter_of_fits():
     assert short[2, 2] > 4 * C[2, 2]
 
 
-@pytest.mark.parametrize("curvature", [0.0, 1e-4, 0.8, -1.2])
+@pytest.mark.parametrize("curvature", [0.0, 1e-4, 0.01, 0.8, -1.2])  # 0.01: both sides of the series switch
 def test_curve_joint_position_jacobian_and_coordinate(curvature):
     """A path of constant curvature (line and circle alike): the Jacobian of ``m(s)`` in ``(s, dx,
     dy, dphi, dkappa)`` matches finite differences, also near and at zero curvature (the series),
@@ -252,6 +252,11 @@ def test_curve_joint_position_jacobian_and_coordinate(curvature):
             e[k] = h
             assert np.allclose((f(x + e) - f(x - e)) / (2 * h), J[:, k], atol=1e-6)
         assert abs(j.coordinate(j.position(s)[0]) - s) < 1e-9
+    # continuous where the closed form takes over from the series (|curvature * s| = 0.01)
+    if curvature:
+        s0 = 0.01 / abs(curvature)
+        assert np.allclose(j.position_shaped(s0 * (1 - 1e-9), np.zeros(4))[1], j.position_shaped(s0 * (1 + 1e-9), np.zeros(4))[1],
+                           atol=1e-9)
     if curvature > 0.1:  # a circle of radius 1/curvature about the centre left of the tangent
         centre = j.origin + np.array([-j.direction[1], j.direction[0]]) / curvature
         for s in (0.5, 2.0):

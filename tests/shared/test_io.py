@@ -42,8 +42,9 @@ def test_read_mot_errors_name_file_and_line(tmp_path, text, needle, line):
 
 
 def test_read_mot_trailing_comma_and_spaces(tmp_path):
-    p = write(tmp_path, "1,-1,10,20,5,5,0.5,\n2, -1, 10, 20, 5, 5\n")
-    np.testing.assert_allclose(read_mot(p)[:, :7], [[1, -1, 10, 20, 5, 5, 0.5], [2, -1, 10, 20, 5, 5, 1]])
+    p = write(tmp_path, "1,-1,10,20,5,5,0.5,\n2, -1, 10, 20, 5, 5\n3 -1 10 20 5 5\n4, -1 10 20 5 5\n")
+    np.testing.assert_allclose(read_mot(p)[:, :7], [[1, -1, 10, 20, 5, 5, 0.5], [2, -1, 10, 20, 5, 5, 1],
+                                                    [3, -1, 10, 20, 5, 5, 1], [4, -1, 10, 20, 5, 5, 1]])
 
 
 def test_read_mot_order_and_empty(tmp_path):
@@ -84,6 +85,38 @@ def test_events_roundtrip_and_validation(tmp_path):
         read_events(bad2)
 
 
+def test_kl_matrix_is_kl_divergence_exactly():
+    """The association's matrix of KL costs equals the pairwise ``kl_divergence`` to the last bit
+    (equal costs must stay equal: a near-tie decides an assignment), capped, ``None`` at the cap."""
+    from artmotion.tracking.appearance import kl_divergence, kl_matrix, rgb_histogram
+
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (120, 160, 3), dtype=np.uint8)
+    hs = [rgb_histogram(img, [x, y, 30, 60]) for x, y in rng.integers(0, 100, (12, 2))] + [None]
+    K = kl_matrix(hs, hs, cap=3.0)
+    for a, p in enumerate(hs):
+        for b, q in enumerate(hs):
+            assert K[a, b] == min(kl_divergence(p, q), 3.0)
+    assert np.all(np.diag(K)[:-1] == 0.0)
+    with pytest.raises(ValueError, match="8-bit"):
+        rgb_histogram(img.astype(float), [0, 0, 30, 60])
+
+
+def test_image_size_from_the_header():
+    """PNG and JPEG sizes from their headers, also behind a large EXIF segment; other data: None."""
+    import cv2
+
+    from artmotion.io.media import _header_size
+
+    img = np.zeros((30, 50, 3), np.uint8)
+    assert _header_size(cv2.imencode(".png", img)[1]) == (50, 30)
+    jpg = cv2.imencode(".jpg", img)[1].tobytes()
+    exif = b"\xff\xe1" + (65533).to_bytes(2, "big") + b"\0" * 65531   # a 64 KB APP1 segment first
+    assert _header_size(np.frombuffer(jpg[:2] + exif + jpg[2:], np.uint8)) == (50, 30)
+    assert _header_size(np.frombuffer(b"GIF89a" + b"\0" * 20, np.uint8)) is None
+    assert _header_size(np.frombuffer(b"\xff\xd8\xff", np.uint8)) is None
+
+
 def test_check_writable(tmp_path):
     from artmotion.io import check_writable
 
@@ -94,3 +127,7 @@ def test_check_writable(tmp_path):
         check_writable(tmp_path / "f" / "out.txt")
     with pytest.raises(InputError, match="is a folder"):
         check_writable(tmp_path)
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(InputError, match="a file is where a folder would be"):
+        check_writable(tmp_path / "dangling" / "out.txt")
+    check_writable(tmp_path / "f")  # an existing file is overwritten: fine

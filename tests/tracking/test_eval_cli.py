@@ -88,3 +88,6 @@ def test_unknown_mot17_class_under_mot17_rules(run_cli, tmp_path):
     assert code == 2 and out == "" and "gt.txt: class 99 (frame 1) is not a MOT16/17 class" in err
     code, out, err = run_cli("eval", gt, gt, "--json")
     assert code == 0 and '"rules": "mot15"' in out
+    gt.write_text("1,1,10,10,20,40,1\n")  # MOT15's 7 columns: no class column to apply MOT17's rules to
+    code, out, err = run_cli("eval", gt, gt, "--rules", "mot17")
+    assert code == 2 and "no class column" in err

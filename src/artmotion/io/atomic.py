@@ -39,8 +39,8 @@ def check_writable(*paths: str | os.PathLike | None) -> None:
         if path.is_dir():
             raise InputError("is a folder, not a file", path=path)
         parent = path.parent
-        while not parent.exists() and parent != parent.parent:
-            parent = parent.parent
+        while not os.path.lexists(parent) and parent != parent.parent:
+            parent = parent.parent  # (a dangling link stops the climb: it is no folder)
         if not parent.is_dir():
             raise InputError("cannot write: a file is where a folder would be", path=parent)
         if not os.access(parent, os.W_OK | os.X_OK):

@@ -39,12 +39,12 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
-        if "," in line:  # comma-separated: every field must hold a value (an empty one would shift the rest)
-            parts = [p.strip() for p in line.removesuffix(",").split(",")]  # (a trailing comma is common)
-            if "" in parts:
-                raise InputError(f"empty field {parts.index('') + 1} in {line!r}", path=path, line=lineno)
-        else:
-            parts = line.split()
+        # commas or spaces separate values; a field between two commas must hold one (an empty one
+        # would shift the rest); a trailing comma is common and harmless
+        fields = [f.strip() for f in line.removesuffix(",").split(",")]
+        if "" in fields:
+            raise InputError(f"empty field {fields.index('') + 1} in {line!r}", path=path, line=lineno)
+        parts = " ".join(fields).split()
         if not 6 <= len(parts) <= 10:
             raise InputError(f"expected 6 to 10 values, found {len(parts)}", path=path, line=lineno)
         try:

@@ -14,14 +14,17 @@ __all__ = ["BINS", "kl_divergence", "kl_matrix", "rgb_histogram"]
 
 
 def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.1, parts: int = 1) -> np.ndarray | None:
-    """Per-channel 16-bin histograms (``(3 * parts, 16)``, each row sums to 1) of the box's pixels.
+    """Per-channel 16-bin histograms (``(3 * parts, 16)``, each row sums to 1) of the box's pixels
+    in an 8-bit image (BGR, or grey).
 
     ``box`` is in full-image pixels and ``image`` may be a copy downscaled by ``scale``; the box
     is shrunk by ``shrink`` on each side to leave out most of the background. ``parts`` > 1 splits
     the box into that many horizontal bands (e.g. 2: upper body and legs, whose colours differ),
     each with its own histograms. ``None`` when the box is (almost) outside the image.
     """
-    x, y, w, h = (float(v) * scale for v in np.asarray(box, dtype=float).ravel()[:4])
+    if image.dtype != np.uint8:
+        raise ValueError(f"rgb_histogram needs an 8-bit image, got {image.dtype}")
+    x, y, w, h = (float(v) * scale for v in np.asarray(box, dtype=float).reshape(4))
     x0 = max(0, math.floor(x + shrink * w))
     y0 = max(0, math.floor(y + shrink * h))
     x1 = min(image.shape[1], math.ceil(x + (1 - shrink) * w))
@@ -55,8 +58,8 @@ def kl_matrix(ps: list, qs: list, cap: float = np.inf) -> np.ndarray:
     i = [k for k, p in enumerate(ps) if p is not None]
     j = [k for k, q in enumerate(qs) if q is not None]
     if i and j:
-        P = np.stack([ps[k].ravel() for k in i])
-        Q = np.stack([qs[k].ravel() for k in j])
-        K = np.sum(P * np.log(P), axis=1)[:, None] - P @ np.log(Q).T
-        out[np.ix_(i, j)] = np.minimum(K, cap)
+        P = np.stack([ps[k].ravel() for k in i])[:, None, :]
+        Q = np.stack([qs[k].ravel() for k in j])[None, :, :]
+        # the same sum as kl_divergence, term by term (not via a matrix product: equal costs stay equal)
+        out[np.ix_(i, j)] = np.minimum(np.sum(P * np.log(P / Q), axis=2), cap)
     return out

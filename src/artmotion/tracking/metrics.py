@@ -322,8 +322,11 @@ def _load_pair(gt, res, rules: str, k: int | None = None) -> tuple[np.ndarray, n
     res_arr, res_path = _load(res, "results" + suffix)
     _check_ids(gt_arr, "ground truth", gt_path)
     _check_ids(res_arr, "results", res_path)
-    if rules == "mot17" and len(gt_arr) and gt_arr.shape[1] > 7:
+    if rules == "mot17" and len(gt_arr):
         bad = ~np.isin(gt_arr[:, 7], list(MOT17_CLASSES))
+        if bad.all() and np.all(gt_arr[:, 7] == -1):
+            raise InputError("no class column: MOT16/17 ground truth has 9 columns "
+                             "(frame,id,x,y,w,h,consider,class,visibility)", path=gt_path)
         if bad.any():   # as TrackEval: a class MOT17 does not know is an error, not a silent non-pedestrian
             raise InputError(f"class {gt_arr[bad, 7][0]:g} (frame {int(gt_arr[bad, 0][0])}) is not a MOT16/17 class "
                              f"({min(MOT17_CLASSES)}-{max(MOT17_CLASSES)})", path=gt_path)

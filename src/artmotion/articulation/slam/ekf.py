@@ -104,7 +104,8 @@ class _Block:
     def position(self, s: np.ndarray):
         """``m_j`` and ``J_{m(t)}^{m_j}`` (2 x dim) from the block's state ``s``: ``(m_x, m_y)``, or
         ``(q, q')`` and, if ``dim`` is 4, a shift ``(dx, dy)`` of the joint's line or centre, and if
-        ``dim`` is 5 also a change of its radius or direction (:meth:`Joint.position_shaped`)."""
+        ``dim`` is 5 also a change of its radius or direction, if 6 (a curve) the turn of its tangent
+        and the change of its curvature (:meth:`Joint.position_shaped`)."""
         if self.joint is None:
             return s[:2], np.eye(2)
         J = np.zeros((2, self.dim))

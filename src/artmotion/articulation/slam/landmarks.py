@@ -24,8 +24,9 @@ __all__ = ["Joint", "Decision", "LandmarkModels"]
 
 @dataclass
 class Joint:
-    """A moving landmark's path: ``origin + q direction`` (prismatic) or ``centre + radius (cos q,
-    sin q)`` (revolute), in world coordinates."""
+    """A moving landmark's path: ``origin + q direction`` (prismatic), ``centre + radius (cos q,
+    sin q)`` (revolute), or a path of constant ``curvature`` through ``origin`` with tangent
+    ``direction`` there, ``q`` its arc length (curve, :meth:`position_shaped`); world coordinates."""
 
     kind: str
     origin: np.ndarray  # prismatic: a point of the line; revolute: the centre; curve: its anchor
@@ -165,7 +166,8 @@ class Joint:
 
     def coordinate(self, m: np.ndarray) -> float:
         """The motion variable ``q`` of the point of the path nearest to ``m`` (the angle in (-pi, pi];
-        a curve's arc length from its anchor, within half a turn)."""
+        a curve's arc length from its anchor, within half a turn of it: ``|q| <= pi / |curvature|``,
+        ample for a hinge's swing)."""
         if self.kind == "curve":
             assert self.direction is not None
             t0 = self.direction
@@ -201,7 +203,7 @@ class Decision:
     dq_dm: np.ndarray | None = None
     rate: float = 0.0
     rate_var: float = 0.0
-    shape_cov: np.ndarray | None = None  #: covariance of the fitted joint's ``(dx, dy, de)`` (3 x 3)
+    shape_cov: np.ndarray | None = None  #: covariance of the joint's ``(dx, dy, de)`` (3 x 3; a curve's 4 x 4)
 
 
 class LandmarkModels:

@@ -70,6 +70,8 @@ class ToolDetector:
 
         check_range("epochs", self.epochs, 1, 10_000, integer=True)
         check_range("batch", self.batch, 1, 1024, integer=True)
+        check_range("threshold", self.threshold, 0.0, 1.0, lo_open=True, hi_open=True)   # as load() requires
+        check_range("max_heads", self.max_heads, 1, _MAX_HEADS, integer=True)
         if len(frames) == 0 or len(frames) != len(heads):
             raise InputError(f"need frames and their heads, got {len(frames)} frames and {len(heads)} head lists")
         shape = frames[0].shape

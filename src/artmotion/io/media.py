@@ -146,7 +146,8 @@ def _header_size(buf: np.ndarray) -> tuple[int, int] | None:
         return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
     if head[:2] != b"\xff\xd8":
         return None
-    data = buf.tobytes()  # the frame header comes before the scan, after any EXIF or ICC segments
+    data = np.ascontiguousarray(buf, dtype=np.uint8).data  # no copy: the frame header comes before
+    # the scan, after any EXIF or ICC segments
     i = 2
     while i + 9 <= len(data) and data[i] == 0xFF:
         marker = data[i + 1]

@@ -127,6 +127,8 @@ def test_slam_simulate_named_world(run_cli):
     rows = [line.split("  ")[0] for line in out.splitlines()]
     assert "warehouse" in out and "Articulated EKF SLAM" in rows and "EKF SLAM + chi2 gate" in rows
     assert "EKF SLAM" not in rows  # not asked for
+    code, out, err = run_cli("slam", "simulate", "--steps", "20", "--runs", "1", "--backends", "ekf,ekf")
+    assert code == 0 and [line.split("  ")[0] for line in out.splitlines()].count("EKF SLAM") == 1  # once
 
 
 def test_slam_bad_options(run_cli, tmp_path):

@@ -167,7 +167,7 @@ def simulate(
 
     if world not in WORLDS:
         raise InputError(f"--world must be one of {', '.join(WORLDS)}, got {world!r}")
-    names = [b.strip() for b in backends.split(",") if b.strip()]
+    names = list(dict.fromkeys(b.strip() for b in backends.split(",") if b.strip()))  # each once, in order
     unknown = [b for b in names if b not in BACKENDS]
     if not names or unknown:
         raise InputError(f"--backends must list some of {', '.join(BACKENDS)}, got {backends!r}")

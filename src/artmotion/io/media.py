@@ -55,32 +55,39 @@ MIN_FPS, MAX_FPS = 0.001, 1000.0
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-def _jpeg_problem(b: np.ndarray) -> str | None:
-    """What is wrong with the JPEG bytes ``b`` (uint8), or ``None``."""
+_Size = tuple[int, int] | None
+
+
+def _jpeg_structure(b: np.ndarray) -> tuple[str | None, _Size]:
+    """What is wrong with the JPEG bytes ``b`` (uint8), or ``None``; and the ``(width, height)`` of
+    its frame header (SOFn segment) when the walk reached it."""
     n = len(b)
     ff = np.flatnonzero(b == 0xFF)
     pos = 2
+    size: _Size = None
     while True:
         if pos + 1 >= n:
-            return "truncated JPEG (ends before its end-of-image marker)"
+            return "truncated JPEG (ends before its end-of-image marker)", size
         if b[pos] != 0xFF:
-            return f"corrupt JPEG (no marker at byte {pos})"
+            return f"corrupt JPEG (no marker at byte {pos})", size
         m = int(b[pos + 1])
         if m == 0xFF:                        # fill byte
             pos += 1
             continue
         if m == 0xD9:                        # end of image
-            return None
+            return None, size
         if 0xD0 <= m <= 0xD7 or m == 0x01:   # markers without a length
             pos += 2
             continue
         if m < 0xC0:
-            return f"corrupt JPEG (invalid marker 0x{m:02X} at byte {pos})"
+            return f"corrupt JPEG (invalid marker 0x{m:02X} at byte {pos})", size
         if pos + 3 >= n:
-            return "truncated JPEG (ends inside a marker segment)"
+            return "truncated JPEG (ends inside a marker segment)", size
         end = pos + 2 + ((int(b[pos + 2]) << 8) | int(b[pos + 3]))
         if end > n:
-            return "truncated JPEG (ends inside a marker segment)"
+            return "truncated JPEG (ends inside a marker segment)", size
+        if m <= 0xCF and m not in (0xC4, 0xC8, 0xCC) and pos + 9 <= n:   # SOFn: precision, height, width
+            size = (int(b[pos + 7]) << 8 | int(b[pos + 8]), int(b[pos + 5]) << 8 | int(b[pos + 6]))
         if m != 0xDA:
             pos = end
             continue
@@ -91,39 +98,49 @@ def _jpeg_problem(b: np.ndarray) -> str | None:
         nxt = b[cand + 1]
         stop = np.flatnonzero((nxt != 0x00) & ((nxt < 0xD0) | (nxt > 0xD7)) & (nxt != 0xFF))
         if not len(stop):
-            return "truncated JPEG (ends inside the image data)"
+            return "truncated JPEG (ends inside the image data)", size
         pos = int(cand[stop[0]])
         if b[pos + 1] < 0xC0:
-            return f"corrupt JPEG (invalid byte sequence in the image data at byte {pos})"
+            return f"corrupt JPEG (invalid byte sequence in the image data at byte {pos})", size
 
 
-def _png_problem(data: bytes) -> str | None:
-    """What is wrong with the PNG bytes ``data``, or ``None`` (chunks and CRCs up to IEND)."""
+def _png_structure(data: bytes) -> tuple[str | None, _Size]:
+    """What is wrong with the PNG bytes ``data``, or ``None`` (chunks and CRCs up to IEND); and the
+    ``(width, height)`` of its IHDR chunk."""
     pos, n = 8, len(data)
+    size: _Size = None
     while True:
         if pos + 8 > n:
-            return "truncated PNG (ends before its IEND chunk)"
+            return "truncated PNG (ends before its IEND chunk)", size
         length = int.from_bytes(data[pos:pos + 4], "big")
         kind = data[pos + 4:pos + 8]
+        if kind == b"IHDR" and pos + 16 <= n:
+            size = (int.from_bytes(data[pos + 8:pos + 12], "big"), int.from_bytes(data[pos + 12:pos + 16], "big"))
         end = pos + 12 + length
         if end > n:
-            return "truncated PNG (ends inside a chunk)"
+            return "truncated PNG (ends inside a chunk)", size
         crc = int.from_bytes(data[end - 4:end], "big")
         if zlib.crc32(data[pos + 4:end - 4]) != crc:
-            return f"corrupt PNG (bad checksum of a {kind.decode('latin-1')!r} chunk)"
+            return f"corrupt PNG (bad checksum of a {kind.decode('latin-1')!r} chunk)", size
         if kind == b"IEND":
-            return None
+            return None, size
         pos = end
+
+
+def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
+    """One walk through a JPEG's segments or a PNG's chunks: what is wrong (``None``: sound) and the
+    ``(width, height)`` its header states (``None``: not found, or another format)."""
+    if len(buf) >= 3 and buf[0] == 0xFF and buf[1] == 0xD8 and buf[2] == 0xFF:
+        return _jpeg_structure(buf)
+    if bytes(buf[:8]) == _PNG_SIGNATURE:
+        return _png_structure(buf.tobytes())
+    return None, None
 
 
 def image_problem(buf: np.ndarray) -> str | None:
     """What is wrong with the image file bytes ``buf`` (uint8), or ``None`` when its structure is
     sound (JPEG and PNG are checked through; other formats only by their decoder)."""
-    if len(buf) >= 3 and buf[0] == 0xFF and buf[1] == 0xD8 and buf[2] == 0xFF:
-        return _jpeg_problem(buf)
-    if bytes(buf[:8]) == _PNG_SIGNATURE:
-        return _png_problem(buf.tobytes())
-    return None
+    return _image_structure(buf)[0]
 
 
 def check_image_bytes(buf: np.ndarray, path) -> None:
@@ -138,29 +155,10 @@ def check_image_bytes(buf: np.ndarray, path) -> None:
 MAX_IMAGE_PIXELS = 2**27
 
 
-def _header_size(buf: np.ndarray) -> tuple[int, int] | None:
+def _header_size(buf: np.ndarray) -> _Size:
     """``(width, height)`` from a PNG's or JPEG's header (no pixel decoded), else ``None``
     (OpenCV then decides)."""
-    head = buf[:24].tobytes()
-    if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
-        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
-    if head[:2] != b"\xff\xd8":
-        return None
-    data = np.ascontiguousarray(buf, dtype=np.uint8).data  # no copy: the frame header comes before
-    # the scan, after any EXIF or ICC segments
-    i = 2
-    while i + 9 <= len(data) and data[i] == 0xFF:
-        marker = data[i + 1]
-        if marker == 0xFF:      # fill byte
-            i += 1
-            continue
-        length = int.from_bytes(data[i + 2:i + 4], "big")
-        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):   # SOFn: precision, height, width
-            return int.from_bytes(data[i + 7:i + 9], "big"), int.from_bytes(data[i + 5:i + 7], "big")
-        if marker == 0xDA or length < 2:   # the scan began (or a broken segment): no frame header seen
-            return None
-        i += 2 + length
-    return None
+    return _image_structure(buf)[1]
 
 
 def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
@@ -184,8 +182,9 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
         raise InputError(f"cannot read: {exc.strerror}", path=path) from None
     if not len(buf):
         raise InputError("empty file", path=path)
-    check_image_bytes(buf, path)
-    size = _header_size(buf)
+    problem, size = _image_structure(buf)  # one walk: the file's structure and its stated size
+    if problem is not None:
+        raise InputError(problem, path=path)
     if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise InputError(f"image of {size[0]}x{size[1]} pixels: larger than artmotion reads "
                          f"({MAX_IMAGE_PIXELS // 2**20} megapixels at most)", path=path)

@@ -62,12 +62,11 @@ def track_command(
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
     import sys
 
+    from artmotion.errors import InputError
     from artmotion.io import check_writable, write_events, write_mot
     from artmotion.tracking import DEFAULT_EXPERTS, track
 
     if video and not video.lower().endswith(".mp4"):
-        from artmotion.errors import InputError
-
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
     check_writable(out, events, video)  # before the work, so that no output is written when one cannot be
     if progress is None:

@@ -7,7 +7,9 @@ line on stderr with exit status 2; set ``ARTMOTION_DEBUG=1`` to see tracebacks.
 
 from __future__ import annotations
 
+import copy
 import os
+import re
 import sys
 
 import typer
@@ -50,6 +52,24 @@ def _register_all() -> None:
 
 
 _register_all()
+
+
+def _app_for(args: list[str]) -> typer.Typer:
+    """The app with only the command (or group) that ``args`` name registered, when they name
+    one: Typer builds the click command of every registered command (docstrings, annotations) on
+    each call, a tenth of ``artmotion track``'s start-up; ``--help``, a bare ``artmotion`` and an
+    unknown name get the whole app (its list, its suggestions)."""
+    if not args or args[0].startswith("-"):
+        return app
+    name = args[0]
+    commands = [c for c in app.registered_commands
+                if (c.name or getattr(c.callback, "__name__", "").replace("_", "-")) == name]
+    groups = [g for g in app.registered_groups if g.name == name]
+    if not commands and not groups:
+        return app
+    pruned = copy.copy(app)
+    pruned.registered_commands, pruned.registered_groups = commands, groups
+    return pruned
 
 
 def _terminate(signum, frame):
@@ -110,14 +130,15 @@ def _main(argv: list[str] | None) -> int:
         except ValueError:      # not the main thread (a test runner, an embedding program)
             pass
     try:
-        code = app(args=argv, prog_name="artmotion", standalone_mode=False)
+        code = _app_for(sys.argv[1:] if argv is None else argv)(args=argv, prog_name="artmotion", standalone_mode=False)
         return code if isinstance(code, int) else 0
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:
         if debug:
             raise
-        message = exc.format_message().strip().rstrip(".")
+        # Typer and click both add "Did you mean ...?" to an unknown command: say it once
+        message = re.sub(r"( Did you mean [^?]*\?)\1+", r"\1", exc.format_message()).strip().rstrip(".")
         if not message:         # no arguments: the help was shown
             return exc.exit_code
         ctx = getattr(exc, "ctx", None)

@@ -61,6 +61,8 @@ bench: install $(PEERS_VENV)/.stamp
 	$(PY) -c "import cv2; cv2.HOGDescriptor()"
 	$(PY) benchmarks/tracking.py
 	$(PY) benchmarks/detector.py
+	$(PY) benchmarks/tracking_setting.py --grid duplicate_share=0,0.05,0.1,0.2,0.3,0.45,0.6 \
+		--grid duplicate_drift=0.03,0.04,0.05,0.06,0.07,0.08,0.1 --block tracking-duplicates
 	$(PY) benchmarks/startup.py
 	$(PY) benchmarks/pose.py
 	$(PY) benchmarks/articulation.py

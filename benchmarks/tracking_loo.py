@@ -99,6 +99,8 @@ SPACE: dict[str, list] = {
     "stitch_kl": [0.5, 1.0, 1.5, 3.0],
     "min_life": [0.0, 0.3, 0.6, 1.0],
     "min_track_score": [0.0, 0.7, 0.8, 0.85, 0.9],
+    "duplicate_share": [0.0, 0.1, 0.2, 0.3, 0.6],     # added later: chosen by benchmarks/tracking_setting.py
+    "duplicate_drift": [0.04, 0.06, 0.08],
 }
 #: settings the search leaves at their :data:`START` value: no fold of the first search (published
 #: detections only, docs/tracking.md) moved them; they are ablated instead
@@ -107,7 +109,7 @@ FIXED = ("experts", "experts_when", "noise_horizon", "camera", "app_parts", "bir
 #: settings that only matter when another one is on
 NEEDS = {"noise_horizon": ("adapt_noise", True), "merge_iou": ("groups", True), "max_group": ("groups", True), "split_app": ("groups", True),
          "max_gap": ("stitch", True), "stitch_dist": ("stitch", True), "stitch_kl": ("stitch", True),
-         "experts_when": ("experts", lambda v: v != "det,motion")}
+         "experts_when": ("experts", lambda v: v != "det,motion"), "duplicate_drift": ("duplicate_share", lambda v: v > 0)}
 
 
 #: the modules whose code decides the scores (reading files, the CLI and the video writer do not)
@@ -362,6 +364,7 @@ def ablations(base: dict) -> list[tuple[str, dict]]:
         "reacquire_kl": ("appearance gate for re-acquiring lost tracks", 0.0, 1.0),
         "tail": ("lost tail after the last detection", 0.0, 0.5),
         "min_track_score": ("dropping tracks of low mean score (offline)", 0.0, 0.85),
+        "duplicate_share": ("dropping duplicate tracks of one person (offline)", 0.0, 0.2),
     }
     for k, (label, off, on) in numeric.items():
         out.append((f"{'without' if base[k] != off else 'with'} {label}", dict(base, **{k: off if base[k] != off else on})))

@@ -63,6 +63,8 @@ class TrackerConfig:
     stitch_kl: float = 1.5      #: largest KL divergence of the histograms of stitched tracklets
     min_life: float = 0.6       #: offline: a track shorter than this that appears and vanishes inside the image is dropped
     min_track_score: float = 0.0  #: offline: a track whose detections score less than this on average is dropped
+    duplicate_share: float = 0.2  #: offline: a track nested in another on this share of its frames may be a duplicate (0: off)
+    duplicate_drift: float = 0.06  #: ... when its centre keeps its place in the other's box (std, box heights)
     # -- online output and events ------------------------------------------------------------
     online_coast: float = 0.0   #: seconds an online result keeps reporting a lost track
     split_hold: float = 0.3     #: seconds a split must hold; a re-merge within it continues the group
@@ -84,5 +86,5 @@ class TrackerConfig:
                     birth_iou=0.7, confirm_hits=2, tentative_misses=0, max_lost=1.0, exit_test=False, groups=True,
                     merge_iou=0.3, max_group=3.0, split_app=False, experts_when="lost", smooth=True,
                     max_interp=1.0, tail=0.0, stitch=False, max_gap=2.0, stitch_dist=0.5, stitch_kl=1.5,
-                    min_life=0.0, min_track_score=0.0)
+                    min_life=0.0, min_track_score=0.0, duplicate_share=0.0)
         return cls(**(base | changes))

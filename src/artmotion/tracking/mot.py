@@ -35,7 +35,7 @@ from artmotion.geometry import clip_box
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import side_of, track_events
 from artmotion.tracking.groups import Group, collapse_group_flicker, group_events
-from artmotion.tracking.offline import stitch, track_pieces
+from artmotion.tracking.offline import duplicates, stitch, track_pieces
 from artmotion.tracking.online import KINDS, OnlineTracker, Track
 from artmotion.tracking.state import DETECTED, TENTATIVE
 
@@ -85,6 +85,7 @@ class MultiObjectTracker(OnlineTracker):
         hists = {t.id: t.hist for t in self.all_tracks}
         pieces, self.relabel, self.piece_span = stitch(pieces, hists, cfg, self.fps)
         pieces = {i: rec for i, rec in pieces.items() if not self._flash(rec) and self._confident(rec)}
+        pieces = duplicates(pieces, cfg.duplicate_share, cfg.duplicate_drift)
         out = [[f, tid, *box, score if score > 0 else 0.5, kind]
                for tid, rec in pieces.items() for f, (box, kind, score) in rec.items()]
         return np.array(out, dtype=float).reshape(-1, 8), set(pieces)

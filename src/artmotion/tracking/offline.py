@@ -13,6 +13,15 @@ have gone anywhere).
 seconds when the constant-velocity extrapolation meets the new start, the sizes agree and the
 colour histograms are close (Sec. 2.5.3-2.5.4); a gap of at most ``max_interp`` seconds is
 interpolated linearly, a longer one only joins the identities (as inside a track).
+
+**Duplicates** (:func:`duplicates`): one person detected twice — an upper-body box inside the
+full-body box, or the same person at two scales — becomes two tracks, one box inside the other,
+moving together. A track whose box lies inside a larger track's on most of its frames, and keeps
+its place there (its centre relative to the container, in container heights, varies by less than
+``duplicate_drift``), is the same object: the detector's weaker hypothesis (the lower mean
+detection score over the shared frames, a frame without detection counting 0) is dropped on the
+shared frames (an inner track nested on most of its frames, whole). A person walking behind another moves
+relative to them, so is kept.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ from artmotion.geometry import box_center, box_from_center
 from artmotion.tracking.appearance import kl_divergence
 from artmotion.tracking.state import DETECTED, GROUP, INTERPOLATED, TENTATIVE, z_to_boxes
 
-__all__ = ["rts_smooth", "stitch", "track_pieces"]
+__all__ = ["duplicates", "rts_smooth", "stitch", "track_pieces"]
 
 
 def _transition(dt: float) -> np.ndarray:
@@ -187,3 +196,71 @@ def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict
             q = j
         out[i] = rec
     return out, relabel, span
+
+
+#: share of a box's area inside another that makes it nested in it
+NESTED = 0.8
+
+
+def _nested_pairs(pieces: dict) -> dict:
+    """``{(inner, outer): rows}`` of the frames where ``inner``'s box lies (``NESTED``) inside the
+    larger box of ``outer`` (the most-covering one); each row: frame, the inner centre relative to
+    the outer one (x, y, in outer heights), the two detection scores (0 where not detected)."""
+    by_frame: dict[int, list] = {}
+    for tid, rec in pieces.items():
+        for f, (box, kind, score) in rec.items():
+            det = kind in (DETECTED, TENTATIVE)
+            by_frame.setdefault(f, []).append((tid, *box, score if det else 0.0))
+    out: dict[tuple[int, int], list] = {}
+    for f, items in by_frame.items():
+        if len(items) < 2:
+            continue
+        a = np.asarray(items, dtype=float)
+        x, y, w, h = a[:, 1], a[:, 2], a[:, 3], a[:, 4]
+        ix = np.minimum(x[:, None] + w[:, None], x + w) - np.maximum(x[:, None], x)
+        iy = np.minimum(y[:, None] + h[:, None], y + h) - np.maximum(y[:, None], y)
+        area = w * h
+        share = np.clip(ix, 0, None) * np.clip(iy, 0, None) / np.maximum(area, 1e-9)[:, None]
+        share[area[None, :] <= area[:, None]] = 0.0     # only inside a larger box (and not itself)
+        for i in np.flatnonzero(share.max(axis=1) >= NESTED):
+            j = int(np.argmax(share[i]))
+            rel = ((x[i] + w[i] / 2 - x[j] - w[j] / 2) / h[j], (y[i] + h[i] / 2 - y[j] - h[j] / 2) / h[j])
+            out.setdefault((int(a[i, 0]), int(a[j, 0])), []).append((f, *rel, a[i, 5], a[j, 5]))
+    return out
+
+
+def duplicates(pieces: dict, share: float, drift: float) -> dict:
+    """``pieces`` without the second track of one object (module doc, "Duplicates"): a track nested
+    in the same larger track on at least ``share`` of its frames (and two), with its relative
+    centre's standard deviation (both axes, in the container's heights) below ``drift``; of the two,
+    the one with the lower mean detection score over those frames loses them — the inner track all
+    of its frames when they are most of them (the rest would be fragments). ``share <= 0``: off."""
+    if share <= 0 or len(pieces) < 2:
+        return pieces
+    pairs = _nested_pairs(pieces)
+    container: dict[int, tuple[int, int]] = {}
+    for inner, outer in pairs:
+        if inner not in container or len(pairs[(inner, outer)]) > len(pairs[container[inner]]):
+            container[inner] = (inner, outer)
+    gone: set[int] = set()
+    lost: dict[int, set] = {}
+    for (inner, outer) in container.values():
+        rows = np.asarray(pairs[(inner, outer)])
+        if len(rows) < max(2.0, share * len(pieces[inner])):
+            continue
+        if float(np.sqrt(rows[:, 1:3].var(axis=0).sum())) >= drift:
+            continue
+        loser = inner if rows[:, 3].mean() <= rows[:, 4].mean() else outer
+        if loser == inner and 2 * len(rows) >= len(pieces[inner]):
+            gone.add(inner)     # mostly a duplicate: what is left of it would be fragments
+        else:
+            lost.setdefault(loser, set()).update(int(f) for f in rows[:, 0])
+    out = {}
+    for tid, rec in pieces.items():
+        if tid in gone:
+            continue
+        if tid in lost:
+            rec = {f: v for f, v in rec.items() if f not in lost[tid]}
+        if rec:
+            out[tid] = rec
+    return out

@@ -1,0 +1,75 @@
+"""The offline pass's duplicate test (offline.duplicates): one person detected twice."""
+
+import numpy as np
+
+from artmotion.tracking.config import TrackerConfig
+from artmotion.tracking.offline import duplicates
+from artmotion.tracking.state import DETECTED, INTERPOLATED
+
+
+def _walker(x0, vx, frames, w=40.0, h=120.0, y=100.0, score=0.9, dx=0.0, dy=0.0, jitter=0.0, seed=0):
+    rng = np.random.default_rng(seed)
+    return {f: [np.array([x0 + vx * f + dx + rng.normal(0, jitter), y + dy + rng.normal(0, jitter), w, h]), DETECTED, score]
+            for f in frames}
+
+
+def _upper_body(person: dict, score: float, frames) -> dict:
+    """A box on the upper half of ``person``'s box, moving with it."""
+    out = {}
+    for f in frames:
+        x, y, w, h = person[f][0]
+        out[f] = [np.array([x + 0.1 * w, y + 0.02 * h, 0.8 * w, 0.5 * h]), DETECTED, score]
+    return out
+
+
+def test_upper_body_box_moving_with_the_person_is_dropped():
+    person = _walker(10, 2.0, range(1, 61), jitter=0.5)
+    pieces = {1: person, 2: _upper_body(person, 0.6, range(20, 41)), 3: _walker(400, -1.0, range(1, 61))}
+    out = duplicates(pieces, share=0.2, drift=0.06)
+    assert set(out) == {1, 3} and out[1] == person
+
+
+def test_person_walking_behind_another_is_kept():
+    """Nested in the nearer person's box for a while, but moving across it: two people."""
+    near = _walker(100, 0.0, range(1, 61), w=60, h=180, y=60)
+    far = _walker(90, 1.0, range(1, 61), w=30, h=90, y=80)       # crosses the near box
+    out = duplicates({1: near, 2: far}, share=0.2, drift=0.06)
+    assert set(out) == {1, 2}
+
+
+def test_weaker_container_loses_the_shared_frames_only():
+    """The detector's larger-scale second box (weaker) around a person: it loses the frames it
+    shares with the person's own box; the person's track is whole."""
+    person = _walker(200, 1.0, range(1, 81), score=0.9)
+    big = {f: [person[f][0] + np.array([-15.0, -30.0, 30.0, 60.0]), DETECTED, 0.4] for f in range(1, 81)}
+    big.update({f: [np.array([600.0, 100, 50, 150]), DETECTED, 0.4] for f in range(81, 91)})
+    out = duplicates({1: person, 2: big}, share=0.2, drift=0.06)
+    assert out[1] == person and sorted(out[2]) == list(range(81, 91))
+
+
+def test_undetected_frames_count_as_no_support():
+    """A container kept alive by interpolation has no detector support on those frames."""
+    person = _walker(200, 1.0, range(1, 41), score=0.6)
+    big = {f: [person[f][0] + np.array([-10.0, -20.0, 20.0, 40.0]), INTERPOLATED, 0.0] for f in range(1, 41)}
+    big[1][1], big[1][2] = DETECTED, 0.99
+    out = duplicates({1: person, 2: big}, share=0.2, drift=0.06)
+    assert out[1] == person and 2 not in out
+
+
+def test_rarely_nested_track_and_off_switch():
+    person = _walker(10, 2.0, range(1, 101))
+    brief = _upper_body(person, 0.5, range(1, 11))
+    brief.update(_walker(600, 0.0, range(11, 101), score=0.5))    # nested on 10 % of its frames
+    pieces = {1: person, 2: brief}
+    assert set(duplicates(pieces, share=0.2, drift=0.06)) == {1, 2}
+    assert duplicates(pieces, share=0.0, drift=0.06) is pieces
+    assert TrackerConfig().duplicate_share > 0 and TrackerConfig.textbook().duplicate_share == 0
+
+
+def test_partly_nested_weaker_track_loses_only_the_nested_frames():
+    """Nested on a third of its frames: those go, the rest (a person of its own) stays."""
+    person = _walker(10, 2.0, range(1, 101))
+    other = _upper_body(person, 0.5, range(1, 31))
+    other.update(_walker(600, 0.0, range(31, 91), score=0.5))
+    out = duplicates({1: person, 2: other}, share=0.2, drift=0.06)
+    assert out[1] == person and sorted(out[2]) == list(range(31, 91))

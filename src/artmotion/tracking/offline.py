@@ -16,12 +16,12 @@ interpolated linearly, a longer one only joins the identities (as inside a track
 
 **Duplicates** (:func:`duplicates`): one person detected twice — an upper-body box inside the
 full-body box, or the same person at two scales — becomes two tracks, one box inside the other,
-moving together. A track whose box lies inside a larger track's on most of its frames, and keeps
-its place there (its centre relative to the container, in container heights, varies by less than
-``duplicate_drift``), is the same object: the detector's weaker hypothesis (the lower mean
-detection score over the shared frames, a frame without detection counting 0) is dropped on the
-shared frames (an inner track nested on most of its frames, whole). A person walking behind another moves
-relative to them, so is kept.
+moving together. A track whose box lies inside a larger track's on a share of its frames
+(``duplicate_share``) and keeps its place there (its centre relative to the container, in
+container heights, varies by less than ``duplicate_drift``) is the same object: the detector's
+weaker hypothesis (the lower mean detection score over the shared frames, a frame without
+detection counting 0) is dropped on the shared frames (an inner track nested on most of its
+frames, whole). A person walking behind another moves relative to them, so is kept.
 """
 
 from __future__ import annotations

@@ -179,3 +179,14 @@ def test_noise_estimator_recovers_both_noises_despite_outliers():
     # without data the estimates are the priors
     fresh = NoiseEstimator([0.05] * 4, [1.0] * 4, dt)
     assert np.allclose(fresh.sd(), 0.05) and np.allclose(fresh.accel_sd(), 1.0)
+
+
+def test_row_medians_equal_numpy_median():
+    """The noise estimator's median (no numpy.ma import) gives numpy's numbers exactly."""
+    from artmotion.tracking.state import _row_medians
+
+    rng = np.random.default_rng(3)
+    for n in range(1, 30):
+        a = rng.normal(size=(2, n)) * rng.uniform(0.1, 10)
+        assert np.array_equal(_row_medians(a), np.median(a, axis=1))
+    assert np.isnan(_row_medians(np.zeros((2, 0)))).all()

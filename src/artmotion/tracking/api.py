@@ -42,7 +42,7 @@ class TrackResult:
 
     @property
     def num_tracks(self) -> int:
-        return int(len(np.unique(self.tracks[:, 1]))) if len(self.tracks) else 0
+        return len(set(self.tracks[:, 1].tolist()))
 
 
 def _work_reduce(width: int, height: int) -> int:

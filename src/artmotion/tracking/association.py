@@ -50,7 +50,7 @@ def assign(cost: np.ndarray) -> list[tuple[int, int]]:
     if not len(rows):
         return []
     best = np.argmin(np.where(allowed, cost, np.inf), axis=1)[rows]
-    if len(np.unique(best)) == len(rows):
+    if len(set(best.tolist())) == len(rows):     # (np.unique would import numpy.ma: start-up)
         return [(int(i), int(j)) for i, j in zip(rows, best)]
     out = []
     for r, c in _groups(allowed):

@@ -33,9 +33,7 @@ def load_detections(path: str | os.PathLike) -> dict[int, np.ndarray]:
         return {}
     rows = rows.copy()
     rows[:, 6] = normalise_scores(rows[:, 6])
-    out: dict[int, np.ndarray] = {}
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]        # grouped by frame, in file order within one
     frames = rows[:, 0].astype(int)
-    for f in np.unique(frames):
-        r = rows[frames == f]
-        out[int(f)] = np.column_stack([r[:, 2:6], r[:, 6]])
-    return out
+    cuts = np.flatnonzero(np.diff(frames)) + 1
+    return {int(r[0, 0]): np.column_stack([r[:, 2:6], r[:, 6]]) for r in np.split(rows, cuts)}

@@ -53,6 +53,19 @@ def z_to_boxes(z) -> np.ndarray:
     return b
 
 
+
+def _row_medians(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, axis=1)``, the same numbers, without importing ``numpy.ma`` (which
+    ``np.median`` does on its first call: a few ms of every command's start-up)."""
+    n = a.shape[1]
+    k = (n - 1) // 2
+    if n == 0:
+        return np.full(a.shape[0], np.nan)
+    if n % 2:
+        return np.partition(a, k, axis=1)[:, k]
+    part = np.partition(a, [k, k + 1], axis=1)
+    return (part[:, k] + part[:, k + 1]) / 2
+
 class KalmanBank:
     """Constant-velocity Kalman filters of many boxes (state ``cx, cy, w, h, vcx, vcy, vw, vh``).
 
@@ -252,7 +265,7 @@ class NoiseEstimator:
         if not self._stale:
             return
         c, dt4 = self._MEDIAN_CHI2_1, self.dt ** 4
-        v1, vL = np.median(self._d2[:, :self._n], axis=1) / c
+        v1, vL = _row_medians(self._d2[:, :self._n]) / c
         L = self.lag
         q = np.maximum(vL - v1, 0.0) / ((L * (4 * L * L - 1) / 6.0 - 0.5) * dt4)
         r = np.maximum(v1 - 0.5 * dt4 * q, 0.0) / 6.0

@@ -107,6 +107,43 @@ def test_cnn_model_learns_pose_round_trips_and_needs_its_views(rendered, tmp_pat
         PoseRegressor.load(bad)
 
 
+def test_opening_from_the_network_read_out_variance_from_the_gp(rendered, tmp_path):
+    """net_mean="opening" (default): the jaw angle is the network's own read-out of its feature,
+    the other angles and every variance the GP's; kept by save/load; old files without the flags
+    load with the GP's mean for every angle."""
+    from artmotion.pose.model import PoseRegressor
+
+    _, data = rendered
+    names, imgs, Y, V = data["train"]
+    _, timgs, _, tV = data["test"]
+    reg = PoseRegressor(feature="cnn", net_steps=60).fit(imgs, Y, names, views=V)
+    op = np.array(["open" in n for n in names])
+    assert op.any() and reg.net_mean == "opening" and list(reg.readout_) == list(op)
+    mean, std = reg.predict(timgs, return_std=True, views=tV)
+    F = reg._project(reg._as_features(timgs), tV)
+    gp_mean, gp_std = reg.gp_.predict(F, return_std=True)
+    np.testing.assert_allclose(mean[:, ~op], gp_mean[:, ~op])
+    np.testing.assert_allclose(std, gp_std)
+    np.testing.assert_allclose(mean[:, op], reg._readout(F)[:, op])
+    assert not np.allclose(mean[:, op], gp_mean[:, op])
+    path = tmp_path / "m.npz"
+    reg.save(path)
+    np.testing.assert_allclose(PoseRegressor.load(path).predict(timgs, views=tV), mean, atol=1e-6)
+    with np.load(path) as z:
+        d = {k: z[k] for k in z.files if k not in ("readout", "net_mu", "net_sd")}
+    old = tmp_path / "old.npz"
+    np.savez(old, **d)
+    again = PoseRegressor.load(old)
+    assert again.net_mean == "none"
+    np.testing.assert_allclose(again.predict(timgs, views=tV), gp_mean, atol=1e-6)
+    d["readout"], d["net_mu"], d["net_sd"] = np.full(len(names), 2), np.zeros(len(names)), np.ones(len(names))
+    np.savez(old, **d)
+    with pytest.raises(InputError, match="readout"):
+        PoseRegressor.load(old)
+    with pytest.raises(InputError, match="net_mean"):
+        PoseRegressor(feature="cnn", net_mean="head")
+
+
 def test_cli_trains_and_predicts_with_boxes(rendered, run_cli, tmp_path):
     root, _ = rendered
     model = tmp_path / "m.npz"

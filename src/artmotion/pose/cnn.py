@@ -124,6 +124,12 @@ def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return (out + noise).astype(np.float32)
 
 
+def target_scale(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of each angle: :func:`fit_net` trains on ``(Y - mean) / std``,
+    so its read-out times ``std`` plus ``mean`` is in degrees again."""
+    return Y.mean(0), Y.std(0) + 1e-9
+
+
 def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64, seed: int = 0, width: int = 16,
             dim: int = DIM, extra: np.ndarray | None = None, augmented: bool = True, weights: np.ndarray | None = None,
             progress: bool = False) -> CropNet:
@@ -133,7 +139,7 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
     ``weights`` ``(k,)``: each angle's weight in the loss (default equal)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    mu, sd = Y.mean(0), Y.std(0) + 1e-9
+    mu, sd = target_scale(Y)
     T = torch.from_numpy(((Y - mu) / sd).astype(np.float32))
     W = torch.from_numpy(np.ones(Y.shape[1], np.float32) if weights is None else np.asarray(weights, np.float32))
     W = W / W.sum()

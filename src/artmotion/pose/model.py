@@ -26,6 +26,8 @@ from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
 MAGIC = "artmotion-pose-gp"
 VERSION = 2
+#: which angles a ``cnn`` model predicts with its network's read-out (``PoseRegressor(net_mean=...)``)
+NET_MEANS = ("opening", "all", "none")
 #: the last fraction of the training rows on which the GP's variance is calibrated
 CALIBRATE = 0.2
 #: :meth:`PoseRegressor.domain_auc`: least AUC of crops that are not what the model was trained on,
@@ -133,7 +135,12 @@ class PoseRegressor:
     (``cnn``: appearance augmentation while training), ``opening_weight`` (``cnn``: the loss
     weight of angles whose name contains "open", the jaw angle, against 1 for the others: the
     jaws are small in the crop and their look depends on the roll; 3 takes 8 % off its error on
-    unseen motion, docs/pose.md), ``n_components`` (the features are
+    unseen motion, docs/pose.md), ``net_mean`` (``cnn``: which angles take the network's own
+    read-out of its feature as their mean, the GP giving their variance: ``"opening"`` (the
+    default), ``"all"`` or ``"none"``. Away from its training crops a GP's mean falls back to the
+    training mean, which pulls a wide-open or closed jaw towards half-open; the read-out
+    extrapolates. Chosen on one unseen sequence and checked on four more, docs/pose.md),
+    ``n_components`` (the features are
     projected on their first principal components before the GP; ``None`` keeps the raw
     feature), ``method`` (``"auto"``, ``"exact"``, ``"sparse"``), ``max_exact`` (``auto``
     switches to the sparse GP above this many training examples), ``neighbours`` (the exact GP's
@@ -147,11 +154,13 @@ class PoseRegressor:
                  blur: float | None = None, n_components: int | None = 128, method: str = "auto", max_exact: int = 6000,
                  neighbours: int | None = 16, n_inducing: int = 1000, n_opt: int = 500, restarts: int = 1,
                  seed: int = 0, progress: bool = False, inducing: str = "kmeans", net_steps: int = 3000,
-                 augment: bool = True, opening_weight: float = 3.0):
+                 augment: bool = True, opening_weight: float = 3.0, net_mean: str = "opening"):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
         if method not in ("auto", "exact", "sparse"):
             raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
+        if net_mean not in NET_MEANS:
+            raise InputError(f"unknown net_mean {net_mean!r}; choose {', '.join(NET_MEANS)}")
         self.feature = feature
         self.cell = F.default_cell(feature) if cell is None else int(cell)
         self.size = (int(size[0]), int(size[1]))
@@ -160,7 +169,12 @@ class PoseRegressor:
         self.net_steps = net_steps
         self.augment = augment
         self.opening_weight = opening_weight
+        self.net_mean = net_mean
         self.net_: Any = None  # artmotion.pose.cnn.CropNet once a cnn model is fitted
+        #: angles whose mean is the network's read-out, and its scale back to degrees (``cnn``)
+        self.readout_: np.ndarray | None = None
+        self.net_mu_: np.ndarray | None = None
+        self.net_sd_: np.ndarray | None = None
         self.n_components = n_components
         self.method = method
         self.max_exact = max_exact
@@ -229,7 +243,7 @@ class PoseRegressor:
             raise InputError("labels contain NaN or infinite values")
         self.names_ = list(names) if names is not None else [f"angle{k}" for k in range(Y.shape[1])]
         self.pca_mean_ = self.pca_components_ = None
-        self.net_ = None
+        self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None
         V = self._check_views(views, len(X), fitting=True)
         if self.feature == "cnn":
             need_package("torch", "tools", "the cnn pose feature")
@@ -243,6 +257,9 @@ class PoseRegressor:
             weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
             self.net_ = cnn.fit_net(crops, Y[:m], self.net_steps, seed=self.seed, extra=None if V is None else V[:m],
                                     augmented=self.augment, weights=np.array(weights), progress=self.progress)
+            self.net_mu_, self.net_sd_ = cnn.target_scale(Y[:m])
+            self.readout_ = np.array([self.net_mean == "all" or (self.net_mean == "opening" and is_opening(n))
+                                      for n in self.names_])
         elif self.n_components is not None and self.n_components < min(X.shape):
             from sklearn.decomposition import PCA
 
@@ -297,7 +314,16 @@ class PoseRegressor:
         k = len(self.names_)
         mean = np.concatenate([p[0] for p in parts]) if parts else np.empty((0, k))
         std = np.concatenate([p[1] for p in parts]) if parts else np.empty((0, k))
+        if self.net_ is not None and self.readout_ is not None and self.readout_.any() and len(mean):
+            mean[:, self.readout_] = self._readout(images)[:, self.readout_]
         return (mean, std) if return_std else mean
+
+    def _readout(self, F: np.ndarray) -> np.ndarray:
+        """The network's own prediction of every angle (degrees) from its feature ``F``."""
+        assert self.net_mu_ is not None and self.net_sd_ is not None  # fitted with the network
+        W = self.net_.head.weight.detach().numpy().astype(np.float64)
+        b = self.net_.head.bias.detach().numpy().astype(np.float64)
+        return (F @ W.T + b) * self.net_sd_ + self.net_mu_
 
     def domain_auc(self, images, views=None, max_rows: int = 1000) -> float:
         """How well ``images`` (crops or a feature matrix, with their ``views`` if the model uses
@@ -366,6 +392,8 @@ class PoseRegressor:
             from artmotion.pose import cnn
 
             data.update({_NET + k: v for k, v in cnn.state_arrays(self.net_).items()})
+            if self.readout_ is not None and self.net_mu_ is not None and self.net_sd_ is not None:
+                data.update(readout=self.readout_.astype(np.int64), net_mu=self.net_mu_, net_sd=self.net_sd_)
         with atomic_path(path, suffix=".npz") as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **data)
@@ -475,6 +503,18 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
         if dim != reg.net_.head.in_features:
             raise InputError(f"inputs of dimension {dim}, but the network's feature has {reg.net_.head.in_features}")
         reg.n_components = None
+        if "readout" in d:      # (models written before 2026-11-26 have none: the GP's mean for every angle)
+            readout = _array(d, "readout", (k,), "i")
+            if not np.isin(readout, (0, 1)).all():
+                raise InputError("'readout' is not a 0/1 flag per angle")
+            reg.readout_ = readout.astype(bool)
+            reg.net_mu_ = _array(d, "net_mu", (k,)).astype(float)
+            reg.net_sd_ = _array(d, "net_sd", (k,)).astype(float)
+            if np.any(reg.net_sd_ <= 0):
+                raise InputError("'net_sd' must be positive")
+            reg.net_mean = "all" if reg.readout_.all() else "none" if not reg.readout_.any() else "opening"
+        else:
+            reg.net_mean = "none"
     elif pca_c.size:
         if pca_c.shape != (dim, full):
             raise InputError(f"'pca_components' is {pca_c.shape[0]}x{pca_c.shape[1]}, not {dim}x{full} "

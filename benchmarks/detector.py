@@ -100,11 +100,13 @@ def average_precision(dets: dict, gt_path: Path) -> dict:
             "P@0.5": float(tp[n5 - 1] / n5) if n5 else 0.0}
 
 
-def track_scores(name: str, dets: dict, experts=("det", "motion"), every: int = 1) -> dict:
-    """MOTA/IDF1/HOTA of the tracker (default settings) on ``dets`` of sequence ``name``, the
-    detections used on every ``every``-th frame (frames decoded once, by tracking_loo's loader)."""
+def track_scores(name: str, dets: dict, experts=("det", "motion"), every: int = 1,
+                 config: TrackerConfig | None = None) -> dict:
+    """MOTA/IDF1/HOTA of the tracker (``config``, default settings) on ``dets`` of sequence
+    ``name``, the detections used on every ``every``-th frame (frames decoded once, by
+    tracking_loo's loader)."""
     seq, red, frames, _, gt_path = _load(name)
-    tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=TrackerConfig())
+    tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config or TrackerConfig())
     n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red, detect_every=every)
     rows, _ = tracker.finish(n)
     s = evaluate(gt_path, rows)

@@ -28,45 +28,43 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _docs import replace_block  # noqa: E402
-from detector import _hash, detections  # noqa: E402
-from tracking_loo import ITEMS, KEYS, SEQUENCES, _cells, _load, _means  # noqa: E402
+from detector import _hash, detections, track_scores  # noqa: E402
+from tracking_loo import ITEMS, SEQUENCES, _cells, _load, _means  # noqa: E402
+from tracking_loo import objective as loo_objective  # noqa: E402
 
-from artmotion.tracking import DEFAULT_EXPERTS, MultiObjectTracker, TrackerConfig, evaluate, run_tracker  # noqa: E402
+from artmotion.tracking import DEFAULT_EXPERTS, TrackerConfig  # noqa: E402
 
 ALL_ITEMS = [*ITEMS, *(f"{n}:ssdlite" for n in SEQUENCES)]
 _DATA: dict = {}
 
 
 def _prepare(cache: Path) -> None:
-    """Frames and detections of every item, loaded before the workers fork."""
+    """Frames (tracking_loo's loader caches them) and detections of every item, loaded before the
+    workers fork: ``{item: (detections, every k-th frame detected)}``."""
     for item in ALL_ITEMS:
         name, _, det = item.partition(":")
         if det == "ssdlite":
-            seq, red, frames, _, gt = _load(name)
-            _DATA[item] = (seq, red, frames, detections(name, "ssdlite-300", cache)[0], gt, 2)
+            _load(name)
+            _DATA[item] = (detections(name, "ssdlite-300", cache)[0], 2)
         else:
-            _DATA[item] = (*_load(name, det or "det.txt"), 1)
+            _DATA[item] = (_load(name, det or "det.txt")[3], 1)
 
 
 def _score(job: tuple[str, dict, str]) -> tuple[str, str, dict]:
     label, changes, item = job
-    seq, red, frames, dets, gt, every = _DATA[item]
-    tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=DEFAULT_EXPERTS,
-                                 config=replace(TrackerConfig(), **changes))
-    n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red, detect_every=every)
-    s = evaluate(gt, tracker.finish(n)[0])
-    return label, item, {k: s[k] for k in KEYS}
+    dets, every = _DATA[item]
+    return label, item, track_scores(item.partition(":")[0], dets, DEFAULT_EXPERTS, every,
+                                     replace(TrackerConfig(), **changes))
 
 
 def objective(scores: dict, items) -> float:
-    return 100 * float(np.mean([np.mean([scores[i][k] for k in KEYS]) for i in items]))
+    """Mean (MOTA + IDF1 + HOTA) / 3 over ``items``, in %."""
+    return 100 * loo_objective(scores, items)
 
 
 def run(grid: dict[str, list[float]], off: dict, cache: Path, workers: int = 2) -> dict:
@@ -92,7 +90,7 @@ def tables(res: dict) -> str:
                        "|---|---|---|---:|---:|---:|---|"]
     for name in SEQUENCES:
         train = [i for i in ALL_ITEMS if i.split(":")[0] != name]
-        choice = max(res, key=lambda label: objective(res[label], train) + 1e-9 * (label == "off"))
+        choice = max(res, key=lambda label: objective(res[label], train))   # ties: the first ("off")
         for item in (i for i in ALL_ITEMS if i.split(":")[0] == name):
             held[item] = res[choice][item]
             lines.append(f"| {name} | {choice} | {item.partition(':')[2] or 'det.txt'} | {_cells(held[item])} | "

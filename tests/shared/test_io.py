@@ -106,7 +106,10 @@ def test_image_size_from_the_header():
     """PNG and JPEG sizes from their headers, also behind a large EXIF segment; other data: None."""
     import cv2
 
-    from artmotion.io.media import _header_size
+    from artmotion.io.media import _image_structure
+
+    def _header_size(buf):
+        return _image_structure(buf)[1]
 
     img = np.zeros((30, 50, 3), np.uint8)
     assert _header_size(cv2.imencode(".png", img)[1]) == (50, 30)

@@ -155,12 +155,6 @@ def check_image_bytes(buf: np.ndarray, path) -> None:
 MAX_IMAGE_PIXELS = 2**27
 
 
-def _header_size(buf: np.ndarray) -> _Size:
-    """``(width, height)`` from a PNG's or JPEG's header (no pixel decoded), else ``None``
-    (OpenCV then decides)."""
-    return _image_structure(buf)[1]
-
-
 def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     """Read and check an image file (see the module docstring); ``flags`` are OpenCV's imread
     flags (default ``IMREAD_COLOR``; ``IMREAD_REDUCED_COLOR_2`` etc. decode it smaller). Returns

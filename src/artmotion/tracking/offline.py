@@ -238,13 +238,13 @@ def duplicates(pieces: dict, share: float, drift: float) -> dict:
     if share <= 0 or len(pieces) < 2:
         return pieces
     pairs = _nested_pairs(pieces)
-    container: dict[int, tuple[int, int]] = {}
+    container: dict[int, int] = {}      # inner track -> the larger track it is most often nested in
     for inner, outer in pairs:
-        if inner not in container or len(pairs[(inner, outer)]) > len(pairs[container[inner]]):
-            container[inner] = (inner, outer)
+        if inner not in container or len(pairs[(inner, outer)]) > len(pairs[(inner, container[inner])]):
+            container[inner] = outer
     gone: set[int] = set()
     lost: dict[int, set] = {}
-    for (inner, outer) in container.values():
+    for inner, outer in container.items():
         rows = np.asarray(pairs[(inner, outer)])
         if len(rows) < max(2.0, share * len(pieces[inner])):
             continue

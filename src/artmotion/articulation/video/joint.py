@@ -1,6 +1,6 @@
 """The joint of a part seen on video: its image motion lifted to 3-D, classified as for logs.
 
-A part's image motion is one affine map per frame (:func:`~.segment.chain_affines`). Under weak
+A part's image motion is one affine map per frame (:func:`~.segment.factorise_motion`). Under weak
 perspective a rigid motion ``(R, T)`` of a (nearly) planar part maps its image by
 ``x' = s B x + b``, where ``B`` is the top-left 2x2 block of ``R`` and ``s`` the change of scale
 (distance). ``B``'s larger singular value is 1, so ``s`` is the larger singular value of the linear

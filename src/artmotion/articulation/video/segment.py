@@ -23,7 +23,8 @@ import numpy as np
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
-__all__ = ["Part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines", "part_motion"]
+__all__ = ["Part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines", "factorise_motion",
+           "part_motion"]
 
 def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]:
     """Whether the camera moves, and the tracks in the first frame's coordinates.
@@ -119,14 +120,74 @@ def chain_affines(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> 
     return A, segment, rss, count
 
 
+def _frame_maps(X: np.ndarray, P: np.ndarray, vis: np.ndarray, frames: np.ndarray,
+                similarity: bool) -> np.ndarray:
+    """Least-squares map (affine, or similarity) of the points ``X`` (``(n, 2)``) to their positions
+    ``P[f]`` at each of ``frames``, over the points ``vis[f]`` sees: ``(len(frames), 2, 3)``. One
+    batched solve of the normal equations."""
+    w = vis[frames].astype(float)[:, :, None]                      # (m, n, 1)
+    Q = np.where(vis[frames][:, :, None], P[frames], 0.0)
+    x, y = X[:, 0], X[:, 1]
+    one = np.ones_like(x)
+    if similarity:   # x' = a x - b y + tx, y' = b x + a y + ty
+        rows = [np.stack([x, -y, one, 0 * x], -1), np.stack([y, x, 0 * x, one], -1)]   # (n, 4) each
+        N = sum(np.einsum("fnk,nj,nl->fjl", w, r, r) for r in rows)
+        rhs = np.einsum("fnk,nj,fn->fj", w, rows[0], Q[:, :, 0]) + np.einsum("fnk,nj,fn->fj", w, rows[1], Q[:, :, 1])
+        a, b, tx, ty = (np.linalg.pinv(N) @ rhs[..., None])[..., 0].T
+        return np.stack([np.stack([a, -b, tx], -1), np.stack([b, a, ty], -1)], 1)
+    Xh = np.column_stack([X, one])                                 # (n, 3)
+    N = np.einsum("fnk,nj,nl->fjl", w, Xh, Xh)
+    rhs = np.einsum("fnk,nj,fni->fji", w, Xh, Q)                   # (m, 3, 2)
+    return np.swapaxes(np.linalg.pinv(N) @ rhs, 1, 2)        # pinv: three tracks in a line
+
+
+def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False,
+                     iters: int = 5) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """The image motion of the tracks ``idx`` as the factorisation of their track matrix (Sec.
+    4.3.2, Eq. 4.2: ``W = M S``), with its missing entries: one map ``A[f]`` per frame (affine, or
+    ``similarity``) and one position per track in common coordinates, fitted by alternating least
+    squares from the chained frame-to-frame fits (:func:`chain_affines`) — a chain accumulates
+    each step's error, while every factorised ``A[f]`` is fitted to all the part's points seen at
+    ``f``. ``A[f]`` maps the coordinates of the first frame with a fit to frame ``f`` (held between
+    fits); ``segment`` is 0 on the frames with a fit (at least 3 tracks seen), -1 elsewhere. Also the
+    residual sum of squares and the number of coordinates fitted."""
+    A, _, _, _ = chain_affines(xy, idx, similarity)
+    P = xy[:, idx]
+    vis = ~np.isnan(P[:, :, 0])
+    frames = np.flatnonzero(vis.sum(axis=1) >= 3)
+    segment = np.full(len(xy), -1)
+    if not frames.size:
+        return A, segment, 0.0, 0
+    first = vis.argmax(axis=0)
+    X = apply(invert(A[first]), P[first, np.arange(len(idx))])      # each track's place, via the chain
+    Pz = np.where(vis[:, :, None], P, 0.0)
+    for _ in range(iters):
+        M = _frame_maps(X, P, vis, frames, similarity)
+        # each track's place: least squares over the frames that see it
+        L, t = M[:, :, :2], M[:, :, 2]
+        w = vis[frames].astype(float)
+        N = np.einsum("fn,fki,fkj->nij", w, L, L)
+        rhs = np.einsum("fn,fki,fnk->ni", w, L, Pz[frames] - t[:, None, :])
+        X = (np.linalg.pinv(N) @ rhs[..., None])[..., 0]
+    M = _frame_maps(X, P, vis, frames, similarity)
+    R = np.where(vis[frames][:, :, None], apply(M[:, None], X[None]) - P[frames], 0.0)
+    base = invert(M[0])
+    held = np.searchsorted(frames, np.arange(len(xy)), side="right") - 1   # the last fit at or before f
+    A = compose(M[np.maximum(held, 0)], base[None])
+    A[held < 0] = IDENTITY
+    segment[frames] = 0
+    return A, segment, float((R ** 2).sum()), 2 * int(vis[frames].sum())
+
+
 def part_motion(xy: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
-    """The part's chained motion under the image-motion model that the Bayesian information
-    criterion prefers: a similarity (4 parameters per frame: a part turning or sliding in a plane
-    facing the camera, and thin parts, whose affine is ill-determined across them) or an affine
-    (6: foreshortening, a lid turning about a hinge in the image plane)."""
+    """The part's factorised motion (:func:`factorise_motion`) under the image-motion model that
+    the Bayesian information criterion prefers: a similarity (4 parameters per frame: a part
+    turning or sliding in a plane facing the camera, and thin parts, whose affine is
+    ill-determined across them) or an affine (6: foreshortening, a lid turning about a hinge in
+    the image plane)."""
     best = None
     for sim in (True, False):
-        A, seg, rss, n = chain_affines(xy, idx, similarity=sim)
+        A, seg, rss, n = factorise_motion(xy, idx, similarity=sim)
         k = (4 if sim else 6) * int((seg >= 0).sum())
         bic = n * math.log(max(rss, 1e-12) / max(n, 1)) + k * math.log(max(n, 2))
         if best is None or bic < best[0]:

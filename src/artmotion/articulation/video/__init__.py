@@ -7,8 +7,9 @@ Stages, each a function of this package:
    camera's motion taken out;
 3. :func:`~.segment.moving_tracks`, :func:`~.segment.rigid_parts` — tracks that belong to the
    scene and later move, grouped into rigid parts (hands and arms enter moving and are left out);
-4. :func:`~.joint.classify_part` — each part's motion lifted to 3-D under weak perspective and
-   classified by the same online model choice as trajectories from logs.
+4. :func:`~.joint.classify_part` — each part's motion lifted to 3-D under weak perspective, every
+   point's lifted track classified by the same online model choice as trajectories from logs, and
+   the points' posteriors pooled.
 
 :func:`analyze_video` runs them all and returns the JSON answer of the command.
 """

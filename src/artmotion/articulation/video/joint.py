@@ -12,7 +12,8 @@ an axis towards the camera to circles in the image plane. Depth from the change 
 focal length (``focal``, px; default: a 60-degree horizontal field of view).
 
 Points of the part, lifted to 3-D (in pixels at the reference distance), are classified by the
-same online model choice as trajectories from logs (:func:`~artmotion.articulation.online.estimate_online`).
+same online model choice as trajectories from logs (:func:`~artmotion.articulation.online.estimate_online`),
+one track per point, and their posteriors pooled (:func:`classify_part`).
 What cannot be recovered without depth: the side towards which a lid tilts (mirror ambiguity),
 and a hinge seen exactly edge-on, whose points move along image lines like a drawer's but shrink
 to its line (foreshortening; the lift tells the two apart only through that shrinking).
@@ -77,6 +78,11 @@ def plane_rectifier(L: np.ndarray) -> np.ndarray | None:
     return K / math.sqrt(np.linalg.det(K))
 
 
+def _part_points(tracks: PointTracks, part: Part) -> np.ndarray:
+    """The part's points in its frame-0 coordinates: each track's first position carried there."""
+    return apply(invert(part.A[tracks.first[part.tracks]]), tracks.start[part.tracks])
+
+
 def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     """Reference frame ``r``, frames used, and the part's points lifted to 3-D at each of them:
     ``(r, frames, P)`` with ``P`` of shape ``(len(frames), n_points, 3)`` (px at the reference
@@ -86,8 +92,7 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     A = part.A
     dets = np.abs(np.linalg.det(A[used, :, :2]))
     r = int(used[np.argmax(dets)])
-    # the part's points in the reference frame: each track's first position carried there
-    ref = apply(A[r], apply(invert(A[tracks.first[part.tracks]]), tracks.start[part.tracks]))
+    ref = apply(A[r], _part_points(tracks, part))   # the part's points in the reference frame
     centre = ref.mean(axis=0)
     pp = np.array([tracks.width / 2.0, tracks.height / 2.0])
     Ar_inv = invert(A[r])
@@ -111,20 +116,36 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
 def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
                   radius_range: tuple[float, float] | None = None, **choice) -> dict:
     """Joint of ``part`` relative to the static scene: the online model choice on the lifted track
-    of the part's point that moves furthest. ``radius_range`` (px) defaults to 2%-100% of the image
-    diagonal (a hinge's radius, as the logs' 5 cm-1 m)."""
+    of every point of the part, pooled. ``radius_range`` (px) defaults to 2%-100% of the image
+    diagonal (a hinge's radius, as the logs' 5 cm-1 m).
+
+    All the points of a rigid part follow one joint, but each lifted track is noisy in its own way
+    (depth comes from the change of scale), and the answer of any single point — e.g. the one
+    that moves furthest — can flip with a tiny change of the data. The points' posteriors are
+    pooled as a weighted product of experts (the logarithmic opinion pool, as the trackers of
+    Sec. 2.4): ``log p(m) = sum_k w_k log p_k(m) + const``, with ``w_k`` the point's image motion
+    over the part's total (weights that sum to 1 count the points' shared evidence once). The
+    axis and range come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
     diag = math.hypot(tracks.width, tracks.height)
     radius_range = radius_range or (0.02 * diag, 1.0 * diag)
     r, used, P = lift_part(tracks, part, focal)
-    span = np.linalg.norm(P - P[:1], axis=2).max(axis=0)
-    k = int(np.argmax(span))
-    X = P[:, k]
-    res = estimate_online(X, used / tracks.fps, radius_range=radius_range, **choice)
-    model = res.model or max(res.probabilities, key=lambda m: res.probabilities[m])
-    cfg = res.configuration
-    out = {"model": model, "confidence": float(res.probabilities.get(model, 0.0)),
-           "points": int(len(part.tracks)), "frames": [int(used[0]), int(used[-1])], "reference_frame": r}
-    motion = np.asarray(res.motion, dtype=float)
+    img = apply(part.A[used][:, None], _part_points(tracks, part)[None])
+    span = np.linalg.norm(img - img[:1], axis=2).max(axis=0)   # each point's motion in the image
+    w = span / max(float(span.sum()), 1e-12)
+    results = [estimate_online(P[:, k], used / tracks.fps, radius_range=radius_range, **choice)
+               for k in range(P.shape[1])]
+    names = list(results[0].probabilities)
+    probs = np.array([[res.probabilities.get(m, 0.0) for m in names] for res in results])
+    pooled = w @ probs
+    j = int(np.argmax(pooled))
+    model = names[j]
+    k = int(np.argmax(w * probs[:, j]))
+    fit = results[k].fits[model]        # that point's fit of the chosen model
+    cfg = fit.configuration(3)
+    motion = np.asarray(fit.motion(P[:, k]), dtype=float)
+    out = {"model": model, "confidence": float(pooled[j]),
+           "probabilities": {m: float(x) for m, x in zip(names, pooled)}, "points": int(len(part.tracks)),
+           "frames": [int(used[0]), int(used[-1])], "reference_frame": r}
     if model == "revolute" and "axis" in cfg:
         axis = np.asarray(cfg["axis"], dtype=float)
         c3 = np.asarray(cfg["centre"], dtype=float)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from artmotion.articulation.online import robust_scale
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
@@ -120,37 +121,40 @@ def chain_affines(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> 
     return A, segment, rss, count
 
 
-def _frame_maps(X: np.ndarray, P: np.ndarray, vis: np.ndarray, frames: np.ndarray,
-                similarity: bool) -> np.ndarray:
-    """Least-squares map (affine, or similarity) of the points ``X`` (``(n, 2)``) to their positions
-    ``P[f]`` at each of ``frames``, over the points ``vis[f]`` sees: ``(len(frames), 2, 3)``. One
-    batched solve of the normal equations."""
-    w = vis[frames].astype(float)[:, :, None]                      # (m, n, 1)
-    Q = np.where(vis[frames][:, :, None], P[frames], 0.0)
+def _frame_maps(X: np.ndarray, Q: np.ndarray, W: np.ndarray, similarity: bool) -> np.ndarray:
+    """Weighted least-squares map (affine, or similarity) of the points ``X`` (``(n, 2)``) to their
+    positions ``Q[f]`` (``(m, n, 2)``, zero where unseen) with weights ``W`` (``(m, n)``, zero where
+    unseen): ``(m, 2, 3)``. One batched solve of the normal equations."""
     x, y = X[:, 0], X[:, 1]
-    one = np.ones_like(x)
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    m = len(W)
     if similarity:   # x' = a x - b y + tx, y' = b x + a y + ty
-        rows = [np.stack([x, -y, one, 0 * x], -1), np.stack([y, x, 0 * x, one], -1)]   # (n, 4) each
-        N = sum(np.einsum("fnk,nj,nl->fjl", w, r, r) for r in rows)
-        rhs = np.einsum("fnk,nj,fn->fj", w, rows[0], Q[:, :, 0]) + np.einsum("fnk,nj,fn->fj", w, rows[1], Q[:, :, 1])
+        rows = [np.stack([x, -y, one, zero], -1), np.stack([y, x, zero, one], -1)]   # (n, 4) each
+        N = sum(W @ (r[:, :, None] * r[:, None, :]).reshape(-1, 16) for r in rows).reshape(m, 4, 4)
+        rhs = (W * Q[:, :, 0]) @ rows[0] + (W * Q[:, :, 1]) @ rows[1]
         a, b, tx, ty = (np.linalg.pinv(N) @ rhs[..., None])[..., 0].T
         return np.stack([np.stack([a, -b, tx], -1), np.stack([b, a, ty], -1)], 1)
     Xh = np.column_stack([X, one])                                 # (n, 3)
-    N = np.einsum("fnk,nj,nl->fjl", w, Xh, Xh)
-    rhs = np.einsum("fnk,nj,fni->fji", w, Xh, Q)                   # (m, 3, 2)
+    N = (W @ (Xh[:, :, None] * Xh[:, None, :]).reshape(-1, 9)).reshape(m, 3, 3)
+    rhs = Xh.T[None] @ (W[:, :, None] * Q)                         # (m, 3, 2)
     return np.swapaxes(np.linalg.pinv(N) @ rhs, 1, 2)        # pinv: three tracks in a line
 
 
-def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False,
-                     iters: int = 5) -> tuple[np.ndarray, np.ndarray, float, int]:
+def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False, nu: float | None = 4.0,
+                     tol: float = 1e-6, max_iters: int = 200) -> tuple[np.ndarray, np.ndarray, float, int]:
     """The image motion of the tracks ``idx`` as the factorisation of their track matrix (Sec.
     4.3.2, Eq. 4.2: ``W = M S``), with its missing entries: one map ``A[f]`` per frame (affine, or
-    ``similarity``) and one position per track in common coordinates, fitted by alternating least
-    squares from the chained frame-to-frame fits (:func:`chain_affines`) — a chain accumulates
-    each step's error, while every factorised ``A[f]`` is fitted to all the part's points seen at
-    ``f``. ``A[f]`` maps the coordinates of the first frame with a fit to frame ``f`` (held between
-    fits); ``segment`` is 0 on the frames with a fit (at least 3 tracks seen), -1 elsewhere. Also the
-    residual sum of squares and the number of coordinates fitted."""
+    ``similarity``) and one position per track in common coordinates. A chain of frame-to-frame
+    fits (:func:`chain_affines`) adds up every step's error; here every ``A[f]`` is fitted to all
+    the part's points seen at ``f``, by alternating least squares started from the chain and run
+    until the weighted residual sum of squares changes by less than ``tol`` (relative). Residuals
+    are weighted as a Student-t with ``nu`` degrees of freedom (None: Gaussian), its scale from the
+    data, as in the model choice (:func:`~artmotion.articulation.online.robust_scale`): a track
+    dragged off its point by an occluding hand for a few frames is down-weighted there.
+
+    ``A[f]`` maps the coordinates of the first frame with a fit to frame ``f`` (held between fits);
+    ``segment`` is 0 on the frames with a fit (at least 3 tracks seen), -1 elsewhere. Also the
+    weighted residual sum of squares and the number of coordinates fitted."""
     A, _, _, _ = chain_affines(xy, idx, similarity)
     P = xy[:, idx]
     vis = ~np.isnan(P[:, :, 0])
@@ -160,23 +164,32 @@ def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False,
         return A, segment, 0.0, 0
     first = vis.argmax(axis=0)
     X = apply(invert(A[first]), P[first, np.arange(len(idx))])      # each track's place, via the chain
-    Pz = np.where(vis[:, :, None], P, 0.0)
-    for _ in range(iters):
-        M = _frame_maps(X, P, vis, frames, similarity)
-        # each track's place: least squares over the frames that see it
+    seen = vis[frames]
+    Q = np.where(seen[:, :, None], P[frames], 0.0)
+    W = seen.astype(float)
+    last = np.inf
+    for _ in range(max_iters):
+        M = _frame_maps(X, Q, W, similarity)
+        # each track's place: weighted least squares over the frames that see it
         L, t = M[:, :, :2], M[:, :, 2]
-        w = vis[frames].astype(float)
-        N = np.einsum("fn,fki,fkj->nij", w, L, L)
-        rhs = np.einsum("fn,fki,fnk->ni", w, L, Pz[frames] - t[:, None, :])
+        N = (W.T @ (np.swapaxes(L, 1, 2) @ L).reshape(-1, 4)).reshape(-1, 2, 2)
+        WD = (W[:, :, None] * (Q - t[:, None, :])).transpose(1, 0, 2).reshape(len(X), -1)   # (n, m * 2)
+        rhs = WD @ L.reshape(-1, 2)
         X = (np.linalg.pinv(N) @ rhs[..., None])[..., 0]
-    M = _frame_maps(X, P, vis, frames, similarity)
-    R = np.where(vis[frames][:, :, None], apply(M[:, None], X[None]) - P[frames], 0.0)
+        e2 = np.where(seen, ((apply(M[:, None], X[None]) - Q) ** 2).sum(axis=2), 0.0)
+        rss = float((W * e2).sum())
+        _, W[seen] = robust_scale(e2[seen], 2, nu)
+        if abs(last - rss) <= tol * rss:
+            break
+        last = rss
+    M = _frame_maps(X, Q, W, similarity)
+    e2 = np.where(seen, ((apply(M[:, None], X[None]) - Q) ** 2).sum(axis=2), 0.0)
     base = invert(M[0])
     held = np.searchsorted(frames, np.arange(len(xy)), side="right") - 1   # the last fit at or before f
     A = compose(M[np.maximum(held, 0)], base[None])
     A[held < 0] = IDENTITY
     segment[frames] = 0
-    return A, segment, float((R ** 2).sum()), 2 * int(vis[frames].sum())
+    return A, segment, float((W * e2).sum()), 2 * int(seen.sum())
 
 
 def part_motion(xy: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:

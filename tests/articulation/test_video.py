@@ -34,6 +34,23 @@ def test_sliding_part_is_prismatic_along_its_direction(tmp_path):
     assert 60 < res.parts[0]["range"]["pixels"] < 100
 
 
+def test_lid_on_a_hinge_in_the_image_plane_is_revolute_about_a_horizontal_axis(tmp_path):
+    """A lid facing the camera tilts away about its bottom edge (perspective rendering): its points
+    move along image lines, foreshortened in proportion to their distance from the hinge."""
+    res = analyze_video(part_video(tmp_path / "lid.avi", "hinge", amount=60))
+    assert res.model == "revolute", res.to_dict()
+    ax = res.parts[0]["axis"]
+    assert not ax["towards_camera"]
+    assert abs(ax["direction"][0]) > math.cos(math.radians(15))
+    assert 30 < res.parts[0]["range"]["degrees"] < 90
+
+
+def test_drawer_pulled_towards_the_camera_is_prismatic_along_the_line_of_sight(tmp_path):
+    res = analyze_video(part_video(tmp_path / "drawer.avi", "depth", amount=0.3))
+    assert res.model == "prismatic", res.to_dict()
+    assert abs(res.parts[0]["axis"]["direction"][2]) > math.cos(math.radians(15))
+
+
 def test_video_without_motion_is_static_with_low_confidence(tmp_path):
     res = analyze_video(part_video(tmp_path / "still.avi", "static"))
     assert res.model == "static" and res.parts == [] and res.confidence <= 0.5

@@ -126,12 +126,17 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     """Write a video (MJPG ``.avi``) of a textured part against a static textured background:
     ``revolute`` turns it about ``pivot`` (an axis towards the camera) by ``amount`` degrees
     (default 60), ``prismatic`` slides it along ``direction`` by ``amount`` px (default 80),
-    ``static`` leaves it. The part rests for the first and last sixth of the frames."""
+    ``static`` leaves it. Seen through a pinhole camera (60-degree field of view), a part facing
+    the camera at ``pivot``'s depth: ``hinge`` turns it about the horizontal line through
+    ``pivot`` (a lid on a hinge in the image plane; its top tilts away) by ``amount`` degrees
+    (default 60), ``depth`` slides it towards the camera by ``amount`` times its distance (default
+    0.3: a drawer pulled out at the viewer). The part rests for the first and last sixth of the
+    frames."""
     import cv2
 
     from artmotion.io.atomic import atomic_path
 
-    if motion not in ("revolute", "prismatic", "static"):
+    if motion not in ("revolute", "prismatic", "static", "hinge", "depth"):
         raise ValueError(f"unknown motion {motion!r}")
     rng = np.random.default_rng(seed)
     w, h = size
@@ -145,22 +150,50 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     part = texture(h, w)
     mask = np.zeros((h, w), np.uint8)
     px, py = pivot
-    cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
-    amount = (60.0 if motion == "revolute" else 80.0) if amount is None else amount
+    if motion == "hinge":   # a lid standing on its hinge at the pivot's height
+        corners = np.array([[px, py - 90], [px + 130, py - 90], [px + 130, py], [px, py]], np.float32)
+    else:
+        corners = np.array([[px, py - 30], [px + 90, py - 30], [px + 90, py + 30], [px, py + 30]], np.float32)
+    if motion in ("hinge", "depth"):
+        cv2.fillConvexPoly(mask, corners.round().astype(np.int32), 255)
+    else:
+        cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
+    amount = {"revolute": 60.0, "hinge": 60.0, "depth": 0.3}.get(motion, 80.0) if amount is None else amount
     d = np.asarray(direction, float) / np.linalg.norm(direction)
+    focal = w / (2.0 * np.tan(np.radians(30.0)))
+    centre = np.array([w / 2.0, h / 2.0])
+    depth = 3.0 * focal                                  # the part's distance, in pixels at focal length
+
+    def seen(q: float) -> np.ndarray:
+        """The part's corners in the image after a motion of ``q`` (0..1) for the pinhole motions."""
+        X = np.column_stack([(corners - centre) * depth / focal, np.full(4, depth)])   # camera coordinates
+        if motion == "hinge":
+            a = np.radians(amount * q)
+            yh = (py - centre[1]) * depth / focal
+            y, z = X[:, 1] - yh, X[:, 2] - depth
+            X[:, 1], X[:, 2] = yh + y * np.cos(a) - z * np.sin(a), depth - y * np.sin(a) + z * np.cos(a)
+        else:
+            X[:, 2] -= amount * q * depth
+        return (X[:, :2] / X[:, 2:] * focal + centre).astype(np.float32)
+
     rest = frames // 6
     with atomic_path(path) as tmp:
         out = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
         for f in range(frames):
             q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
             q = 0.5 - 0.5 * np.cos(np.pi * q)
-            if motion == "revolute":
-                M = cv2.getRotationMatrix2D((px, py), amount * q, 1.0)
+            if motion in ("hinge", "depth"):
+                H = cv2.getPerspectiveTransform(corners, seen(q))
+                p = cv2.warpPerspective(part, H, (w, h))
+                m = cv2.warpPerspective(mask, H, (w, h)) > 127
             else:
-                s = amount * q if motion == "prismatic" else 0.0
-                M = np.array([[1.0, 0.0, s * d[0]], [0.0, 1.0, s * d[1]]])
-            p = cv2.warpAffine(part, M, (w, h))
-            m = cv2.warpAffine(mask, M, (w, h)) > 127
+                if motion == "revolute":
+                    M = cv2.getRotationMatrix2D((px, py), amount * q, 1.0)
+                else:
+                    s = amount * q if motion == "prismatic" else 0.0
+                    M = np.array([[1.0, 0.0, s * d[0]], [0.0, 1.0, s * d[1]]])
+                p = cv2.warpAffine(part, M, (w, h))
+                m = cv2.warpAffine(mask, M, (w, h)) > 127
             img = back.copy()
             img[m] = p[m]
             out.write(img)

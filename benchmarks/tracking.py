@@ -15,9 +15,10 @@ Tables:
   mean over sequences, and the best peer per column;
 * **weak detections** (``det_acf.txt``, ``det_dpm.txt`` where the sequence has them; DPM scores are
   not in [0, 1] and are replaced by their mid-rank, for every tracker);
-* **speed**: the whole ``artmotion track`` command (a fresh process, start-up included) against
-  the time of merely decoding the sequence's frames in one process (the decode floor); artmotion's
-  peak memory.
+* **speed**: the whole ``artmotion track`` command (the console script in a fresh process,
+  start-up included) against the time of merely decoding the sequence's frames in one process (the
+  decode floor), the two timed in alternation, five of each, the best of each kept (so that both
+  see the same load); artmotion's peak memory.
 
 Usage::
 
@@ -98,22 +99,39 @@ def _best_wall(cmd: list[str], runs: int = 3, env=None) -> tuple[float, str, int
     return best, out, peak
 
 
-def decode_floor(seq: Path) -> tuple[int, float]:
+def decode_floor(seq: Path, runs: int = 3) -> tuple[int, float]:
     """A fresh Python process that imports OpenCV and decodes every frame of ``seq`` at full size
-    (``cv2.imread`` / ``VideoCapture.read``): frames and best wall time of three runs."""
-    seconds, out, _ = _best_wall([sys.executable, "-c", _DECODE, str(seq)])
+    (``cv2.imread`` / ``VideoCapture.read``): frames and best wall time of ``runs`` runs."""
+    seconds, out, _ = _best_wall([sys.executable, "-c", _DECODE, str(seq)], runs=runs)
     return int(out.split()[0]), seconds
 
 
 def run_artmotion(seq: Path, det: Path, out: Path, runs: int = 3) -> dict:
-    """``artmotion track`` in a fresh process: wall time with start-up (best of ``runs``), peak memory."""
+    """``artmotion track`` in a fresh process, by the console script a user runs (``python -m
+    artmotion`` when it is not installed): wall time with start-up (best of ``runs``), peak memory."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    cmd = [sys.executable, "-m", "artmotion", "track", str(seq), "--det", str(det), "--out", str(out), "--no-progress"]
+    script = Path(sys.executable).with_name("artmotion")
+    cmd = [str(script)] if script.is_file() else [sys.executable, "-m", "artmotion"]
+    cmd += ["track", str(seq), "--det", str(det), "--out", str(out), "--no-progress"]
     try:
         seconds, _, peak = _best_wall(cmd, runs=runs, env=env)
     except RuntimeError as exc:
         return {"error": str(exc)}
     return {"seconds": seconds, "peak_bytes": peak}
+
+
+def speed_pair(seq: Path, det: Path, out: Path, rounds: int = 5) -> tuple[int, float, dict]:
+    """The decode floor and ``artmotion track`` timed in alternation (``rounds`` of each, the best
+    of each kept), so that both see the same load: frames, floor seconds, and the run."""
+    floor, run = (0, float("inf")), {"seconds": float("inf"), "peak_bytes": 0}
+    for _ in range(rounds):
+        n, sec = decode_floor(seq, runs=1)
+        floor = (n, min(floor[1], sec))
+        r = run_artmotion(seq, det, out, runs=1)
+        if "error" in r:
+            raise RuntimeError(r["error"])
+        run = {"seconds": min(run["seconds"], r["seconds"]), "peak_bytes": max(run["peak_bytes"], r["peak_bytes"])}
+    return floor[0], floor[1], run
 
 
 def run_peer(name: str, seq: Path, det: Path, out: Path) -> dict:
@@ -190,7 +208,7 @@ def main(argv=None) -> int:
                 for m in methods:
                     out = Path(tmp) / f"{seq.name}-{kind}-{m}.txt"
                     if m == "artmotion":
-                        run = run_artmotion(seq, det, out, runs=3 if kind == "published" and not args.no_speed else 1)
+                        run = run_artmotion(seq, det, out, runs=1)
                     else:
                         run = run_peer(m, seq, det, out)
                     if "error" in run:
@@ -208,16 +226,13 @@ def main(argv=None) -> int:
     weak_table, _ = score_table(weak, weak_names, methods) if weak else ("(no weak detections found)", {})
     speed = ["| sequence | frames | size | decode floor s | artmotion track s | ratio | frames/s | peak MiB |",
              "|---|---:|---|---:|---:|---:|---:|---:|"]
-    if not args.no_speed:
-        for seq in seqs:
-            run = runs.get(("artmotion", seq.name))
-            if run is None:
-                continue
-            n, dec = decode_floor(seq)
-            ini = (seq / "seqinfo.ini").read_text()
-            size = "x".join(re.search(rf"{k}\s*=\s*(\d+)", ini).group(1) for k in ("imWidth", "imHeight"))
-            speed.append(f"| {seq.name} | {n} | {size} | {dec:.2f} | {run['seconds']:.2f} | {run['seconds'] / dec:.2f}x | "
-                         f"{n / run['seconds']:.0f} | {run['peak_bytes'] / 2 ** 20:.0f} |")
+    for seq in [] if args.no_speed else [s for s in seqs if ("artmotion", s.name) in runs]:
+        with tempfile.TemporaryDirectory() as tmp:
+            n, dec, run = speed_pair(seq, seq / "det" / "det.txt", Path(tmp) / "speed.txt")
+        ini = (seq / "seqinfo.ini").read_text()
+        size = "x".join(re.search(rf"{k}\s*=\s*(\d+)", ini).group(1) for k in ("imWidth", "imHeight"))
+        speed.append(f"| {seq.name} | {n} | {size} | {dec:.2f} | {run['seconds']:.2f} | {run['seconds'] / dec:.2f}x | "
+                     f"{n / run['seconds']:.0f} | {run['peak_bytes'] / 2 ** 20:.0f} |")
     wins = [s for s in names if verdict.get(s)]
     means = verdict.get("_means", {})
     summary = ""
@@ -230,7 +245,7 @@ def main(argv=None) -> int:
                    f"(HOTA {100 * (a['HOTA'] - b['HOTA']):+.1f} points).")
     peers_version = "not installed"
     if PEERS_PY.exists():
-        peers_version = subprocess.run([str(PEERS_PY), "-c", "import trackers; print(trackers.__version__)"],
+        peers_version = subprocess.run([str(PEERS_PY), "-c", "from importlib.metadata import version; print(version('trackers'))"],
                                        capture_output=True, text=True).stdout.strip() or peers_version
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     load = os.getloadavg()[0]

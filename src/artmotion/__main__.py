@@ -1,3 +1,3 @@
-from artmotion.cli import main
+from artmotion.cli import run
 
-raise SystemExit(main())
+run()

@@ -122,7 +122,8 @@ def synthetic_log(kind: str, seed: int | np.random.Generator = 0) -> tuple[np.nd
 
 def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int, int] = (320, 240),
                amount: float | None = None, pivot: tuple[float, float] = (110.0, 120.0),
-               direction: tuple[float, float] = (1.0, 0.3), seed: int = 0, fps: float = 30.0):
+               direction: tuple[float, float] = (1.0, 0.3), seed: int = 0, fps: float = 30.0,
+               hand: bool = False):
     """Write a video (MJPG ``.avi``) of a textured part against a static textured background:
     ``revolute`` turns it about ``pivot`` (an axis towards the camera) by ``amount`` degrees
     (default 60), ``prismatic`` slides it along ``direction`` by ``amount`` px (default 80),
@@ -131,7 +132,9 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     ``pivot`` (a lid on a hinge in the image plane; its top tilts away) by ``amount`` degrees
     (default 60), ``depth`` slides it towards the camera by ``amount`` times its distance (default
     0.3: a drawer pulled out at the viewer). The part rests for the first and last sixth of the
-    frames."""
+    frames. ``hand``: a textured blob (a hand) comes in from the image's lower edge while the part
+    moves, passes over the part's middle, covering part of it, and goes out again; it is never
+    still."""
     import cv2
 
     from artmotion.io.atomic import atomic_path
@@ -148,6 +151,7 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
 
     back = texture(h, w)
     part = texture(h, w)
+    hand_tex = (texture(h, w).astype(np.float32) * [0.55, 0.7, 1.0]).astype(np.uint8) if hand else None
     mask = np.zeros((h, w), np.uint8)
     px, py = pivot
     if motion == "hinge":   # a lid standing on its hinge at the pivot's height
@@ -196,6 +200,16 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
                 m = cv2.warpAffine(mask, M, (w, h)) > 127
             img = back.copy()
             img[m] = p[m]
+            if hand_tex is not None:
+                # in from below at the start of the motion, over the part at its middle, out at its end
+                u = (f - rest + 10) / max(frames - 2 * rest + 20, 1)
+                if 0.0 < u < 1.0:
+                    c = np.array([w * 0.3 + 0.4 * w * u, h + 40 - (h * 0.5 + 40) * np.sin(np.pi * u)])
+                    g = np.zeros((h, w), np.uint8)
+                    cv2.ellipse(g, (int(c[0]), int(c[1])), (34, 48), 20.0, 0.0, 360.0, 255, -1)
+                    shift = np.array([[1, 0, c[0] - w / 2], [0, 1, c[1] - h / 2]], np.float32)
+                    skin = cv2.warpAffine(hand_tex, shift, (w, h), borderMode=cv2.BORDER_REFLECT)
+                    img[g > 0] = skin[g > 0]
             out.write(img)
         out.release()
     return path

@@ -113,7 +113,8 @@ def run() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the console script; returns the exit status.
+    """Run the command line on ``argv`` (default: ``sys.argv``) and return the exit status (the
+    console script calls it through :func:`run`).
 
     Every failure is one line on stderr: bad input (:class:`ArtmotionError`, a usage error, an
     operating-system error such as a full disk) exits with 2; Ctrl-C with 130 and SIGTERM with 143,

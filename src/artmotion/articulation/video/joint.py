@@ -122,10 +122,10 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     All the points of a rigid part follow one joint, but each lifted track is noisy in its own way
     (depth comes from the change of scale), and the answer of any single point — e.g. the one
     that moves furthest — can flip with a tiny change of the data. The points' posteriors are
-    pooled as a weighted product of experts (the logarithmic opinion pool, as the trackers of
-    Sec. 2.4): ``log p(m) = sum_k w_k log p_k(m) + const``, with ``w_k`` the point's image motion
-    over the part's total (weights that sum to 1 count the points' shared evidence once). The
-    axis and range come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
+    averaged (a linear opinion pool): ``p(m) = sum_k w_k p_k(m)``, with ``w_k`` the point's image
+    motion over the part's total. (A weighted product of them, the logarithmic pool, lets one
+    point that gives a model a probability of 1e-200 veto all the others.) The axis and range
+    come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
     diag = math.hypot(tracks.width, tracks.height)
     radius_range = radius_range or (0.02 * diag, 1.0 * diag)
     r, used, P = lift_part(tracks, part, focal)

@@ -106,15 +106,15 @@ def decode_floor(seq: Path, runs: int = 3) -> tuple[int, float]:
     return int(out.split()[0]), seconds
 
 
-def run_artmotion(seq: Path, det: Path, out: Path, runs: int = 3) -> dict:
+def run_artmotion(seq: Path, det: Path, out: Path) -> dict:
     """``artmotion track`` in a fresh process, by the console script a user runs (``python -m
-    artmotion`` when it is not installed): wall time with start-up (best of ``runs``), peak memory."""
+    artmotion`` when it is not installed): wall time with start-up, peak memory."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     script = Path(sys.executable).with_name("artmotion")
     cmd = [str(script)] if script.is_file() else [sys.executable, "-m", "artmotion"]
     cmd += ["track", str(seq), "--det", str(det), "--out", str(out), "--no-progress"]
     try:
-        seconds, _, peak = _best_wall(cmd, runs=runs, env=env)
+        seconds, _, peak = _best_wall(cmd, runs=1, env=env)
     except RuntimeError as exc:
         return {"error": str(exc)}
     return {"seconds": seconds, "peak_bytes": peak}
@@ -123,15 +123,16 @@ def run_artmotion(seq: Path, det: Path, out: Path, runs: int = 3) -> dict:
 def speed_pair(seq: Path, det: Path, out: Path, rounds: int = 5) -> tuple[int, float, dict]:
     """The decode floor and ``artmotion track`` timed in alternation (``rounds`` of each, the best
     of each kept), so that both see the same load: frames, floor seconds, and the run."""
-    floor, run = (0, float("inf")), {"seconds": float("inf"), "peak_bytes": 0}
+    floor, run = float("inf"), {"seconds": float("inf"), "peak_bytes": 0}
+    n = 0
     for _ in range(rounds):
         n, sec = decode_floor(seq, runs=1)
-        floor = (n, min(floor[1], sec))
-        r = run_artmotion(seq, det, out, runs=1)
+        r = run_artmotion(seq, det, out)
         if "error" in r:
             raise RuntimeError(r["error"])
+        floor = min(floor, sec)
         run = {"seconds": min(run["seconds"], r["seconds"]), "peak_bytes": max(run["peak_bytes"], r["peak_bytes"])}
-    return floor[0], floor[1], run
+    return n, floor, run
 
 
 def run_peer(name: str, seq: Path, det: Path, out: Path) -> dict:
@@ -199,7 +200,6 @@ def main(argv=None) -> int:
     methods = [m for m in args.methods.split(",") if m]
     results: dict = {}
     weak: dict = {}
-    runs: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         for seq in seqs:
             gt = seq / "gt" / "gt.txt"
@@ -208,7 +208,7 @@ def main(argv=None) -> int:
                 for m in methods:
                     out = Path(tmp) / f"{seq.name}-{kind}-{m}.txt"
                     if m == "artmotion":
-                        run = run_artmotion(seq, det, out, runs=1)
+                        run = run_artmotion(seq, det, out)
                     else:
                         run = run_peer(m, seq, det, out)
                     if "error" in run:
@@ -216,8 +216,6 @@ def main(argv=None) -> int:
                         continue
                     s = evaluate(gt, np.loadtxt(out, delimiter=",", ndmin=2) if out.stat().st_size else np.zeros((0, 7)))
                     (results if kind == "published" else weak)[(m, seq.name if kind == "published" else f"{seq.name} ({kind})")] = s
-                    if kind == "published":
-                        runs[(m, seq.name)] = run
                     print(f"[{seq.name} {kind}] {m}: MOTA {s['MOTA']:.3f} IDF1 {s['IDF1']:.3f} HOTA {s['HOTA']:.3f}",
                           file=sys.stderr)
     names = [s.name for s in seqs]
@@ -226,7 +224,7 @@ def main(argv=None) -> int:
     weak_table, _ = score_table(weak, weak_names, methods) if weak else ("(no weak detections found)", {})
     speed = ["| sequence | frames | size | decode floor s | artmotion track s | ratio | frames/s | peak MiB |",
              "|---|---:|---|---:|---:|---:|---:|---:|"]
-    for seq in [] if args.no_speed else [s for s in seqs if ("artmotion", s.name) in runs]:
+    for seq in [] if args.no_speed else [s for s in seqs if ("artmotion", s.name) in results]:
         with tempfile.TemporaryDirectory() as tmp:
             n, dec, run = speed_pair(seq, seq / "det" / "det.txt", Path(tmp) / "speed.txt")
         ini = (seq / "seqinfo.ini").read_text()
@@ -271,7 +269,8 @@ Peers run with their default parameters and the sequence's frame rate in their o
 
 The whole `artmotion track SEQ --det DET --out FILE` in a fresh process (Python start-up and
 imports included) against the decode floor: a fresh Python process that imports OpenCV and decodes
-every frame at full size (`cv2.imread` / `VideoCapture.read`). Best of three runs each.
+every frame at full size (`cv2.imread` / `VideoCapture.read`), timed in alternation, the best of
+five runs each.
 
 {chr(10).join(speed)}
 """

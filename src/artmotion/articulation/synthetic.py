@@ -154,11 +154,12 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     hand_tex = (texture(h, w).astype(np.float32) * [0.55, 0.7, 1.0]).astype(np.uint8) if hand else None
     mask = np.zeros((h, w), np.uint8)
     px, py = pivot
+    pinhole = motion in ("hinge", "depth")
     if motion == "hinge":   # a lid standing on its hinge at the pivot's height
         corners = np.array([[px, py - 90], [px + 130, py - 90], [px + 130, py], [px, py]], np.float32)
-    else:
+    else:                   # (the corners of the part that the pinhole motions move)
         corners = np.array([[px, py - 30], [px + 90, py - 30], [px + 90, py + 30], [px, py + 30]], np.float32)
-    if motion in ("hinge", "depth"):
+    if pinhole:
         cv2.fillConvexPoly(mask, corners.round().astype(np.int32), 255)
     else:
         cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
@@ -186,7 +187,7 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
         for f in range(frames):
             q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
             q = 0.5 - 0.5 * np.cos(np.pi * q)
-            if motion in ("hinge", "depth"):
+            if pinhole:
                 H = cv2.getPerspectiveTransform(corners, seen(q))
                 p = cv2.warpPerspective(part, H, (w, h))
                 m = cv2.warpPerspective(mask, H, (w, h)) > 127

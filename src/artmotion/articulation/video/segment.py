@@ -140,6 +140,11 @@ def _frame_maps(X: np.ndarray, Q: np.ndarray, W: np.ndarray, similarity: bool) -
     return np.swapaxes(np.linalg.pinv(N) @ rhs, 1, 2)        # pinv: three tracks in a line
 
 
+def _squared_residuals(M: np.ndarray, X: np.ndarray, Q: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """``|M[f] X[i] - Q[f, i]|^2`` where ``seen``, 0 elsewhere: ``(m, n)``."""
+    return np.where(seen, ((apply(M[:, None], X[None]) - Q) ** 2).sum(axis=2), 0.0)
+
+
 def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False, nu: float | None = 4.0,
                      tol: float = 1e-6, max_iters: int = 200) -> tuple[np.ndarray, np.ndarray, float, int]:
     """The image motion of the tracks ``idx`` as the factorisation of their track matrix (Sec.
@@ -176,14 +181,14 @@ def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False, 
         WD = (W[:, :, None] * (Q - t[:, None, :])).transpose(1, 0, 2).reshape(len(X), -1)   # (n, m * 2)
         rhs = WD @ L.reshape(-1, 2)
         X = (np.linalg.pinv(N) @ rhs[..., None])[..., 0]
-        e2 = np.where(seen, ((apply(M[:, None], X[None]) - Q) ** 2).sum(axis=2), 0.0)
+        e2 = _squared_residuals(M, X, Q, seen)
         rss = float((W * e2).sum())
         _, W[seen] = robust_scale(e2[seen], 2, nu)
         if abs(last - rss) <= tol * rss:
             break
         last = rss
     M = _frame_maps(X, Q, W, similarity)
-    e2 = np.where(seen, ((apply(M[:, None], X[None]) - Q) ** 2).sum(axis=2), 0.0)
+    e2 = _squared_residuals(M, X, Q, seen)
     base = invert(M[0])
     held = np.searchsorted(frames, np.arange(len(xy)), side="right") - 1   # the last fit at or before f
     A = compose(M[np.maximum(held, 0)], base[None])

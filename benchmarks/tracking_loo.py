@@ -233,11 +233,8 @@ class Scorer:
         self.pool = mp.get_context("fork").Pool(workers) if workers > 1 else None
 
     def scores(self, points: list[dict]) -> list[dict]:
-        todo = {}
-        for p in points:
-            missing = [i for i in ITEMS if i not in self.cache.get(key(p), {})]
-            if missing:
-                todo[key(p)] = (p, missing)
+        # one job per point and item, so that the workers stay busy when one point is missing
+        todo = {(key(p), i): (p, [i]) for p in points for i in ITEMS if i not in self.cache.get(key(p), {})}
         if todo:
             it = self.pool.imap_unordered(_work, todo.values()) if self.pool else map(_work, todo.values())
             self.cache_path.parent.mkdir(parents=True, exist_ok=True)

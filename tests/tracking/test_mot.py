@@ -261,3 +261,26 @@ def test_detector_on_every_kth_frame_is_carried_between(every):
         ends.append(max(j + 1 for j, m in enumerate(live) if m))
     # lost after frame 10 for 1 s (10 frames); with k > 1 the end is seen at a detected frame
     assert 19 <= ends[0] <= 22 and abs(ends[1] - ends[0]) < every, ends
+
+
+def test_collapse_terminates_when_two_groups_continue_each_other():
+    """Two groups split at once and each re-forms under the other's id: the renames must not
+    form a cycle (they once did, and the next event of either group looped for ever)."""
+    import signal
+
+    evs = [_g("split", 10, [3, 4], 2), _g("split", 10, [1, 2], 1), _g("merge", 11, [1, 2], 2),
+           _g("merge", 12, [3, 4], 1), _g("split", 30, [1, 2], 2), _g("split", 31, [3, 4], 1)]
+
+    def stuck(signum, frame):
+        raise TimeoutError("collapse_group_flicker does not terminate")
+
+    old = signal.signal(signal.SIGALRM, stuck)
+    signal.setitimer(signal.ITIMER_REAL, 5.0)
+    try:
+        out = collapse_group_flicker(evs, hold=8)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    # both splits at frame 10 were undone by the re-merges; each pair splits once, for good
+    assert [(e["type"], e["frame"], e["tracks"]) for e in out] == [("split", 30, [1, 2]), ("split", 31, [3, 4])]
+    assert [e["group"] for e in out] == [1, 2]   # each pair keeps the id of the group it was

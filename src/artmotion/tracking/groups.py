@@ -191,16 +191,17 @@ def collapse_group_flicker(events: list[dict], hold: int) -> list[dict]:
     """
     order_key = {"split": 0, "merge": 1}
     evs = sorted(events, key=lambda e: (e["frame"], order_key.get(e["type"], 2), e["tracks"]))
+    # a group's id in the input -> the id of the group it continues in the output: one lookup,
+    # not a chain (an id may be used again for another group; chasing renames through such ids
+    # once ran in a cycle for ever)
     rename: dict[int, int] = {}
     pending: list[tuple[int, dict]] = []   # (index in out, split event) waiting for a re-merge
     out: list[dict | None] = []
     for ev in evs:
         ev = dict(ev)
-        if "group" in ev:
-            g = ev["group"]
-            while g in rename:
-                g = rename[g]
-            ev["group"] = g
+        raw = ev.get("group")
+        if raw is not None:
+            ev["group"] = rename.get(raw, raw)
         pending = [(k, s) for k, s in pending if ev["frame"] - s["frame"] <= hold]
         if ev["type"] == "merge":
             hit = next(((k, s) for k, s in reversed(pending)
@@ -215,9 +216,8 @@ def collapse_group_flicker(events: list[dict], hold: int) -> list[dict]:
                     if e is not None and e["type"] == "merge" and e["frame"] == s["frame"] \
                             and e.get("group") == s.get("group"):
                         out[q] = None
-                if "group" in ev and "group" in s and ev["group"] != s["group"]:
-                    rename[ev["group"]] = s["group"]
-                    ev["group"] = s["group"]
+                if raw is not None and "group" in s and ev["group"] != s["group"]:
+                    rename[raw] = ev["group"] = s["group"]
                 if set(ev["tracks"]) == set(s["tracks"]):
                     continue                       # ... and the re-merge continues the same group
                 # someone else joined while the group re-formed: a merge into the old group

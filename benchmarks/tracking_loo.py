@@ -161,15 +161,20 @@ def key(point: dict) -> str:
     return json.dumps({k: point[k] for k in sorted(point)}, sort_keys=True)
 
 
+def _per_item(scores: dict, items) -> list[float]:
+    """(MOTA + IDF1 + HOTA) / 3 of each of ``items``."""
+    return [float(np.mean([scores[s][k] for k in KEYS])) for s in items]
+
+
 def objective(scores: dict, items) -> float:
     """Mean over ``items`` of (MOTA + IDF1 + HOTA) / 3."""
-    return float(np.mean([np.mean([scores[s][k] for k in KEYS]) for s in items]))
+    return float(np.mean(_per_item(scores, items)))
 
 
 def worst_objective(scores: dict, items) -> float:
     """The worst item's (MOTA + IDF1 + HOTA) / 3: a choice that must not give up any sequence
     (held out better than the mean in docs/tracking.md)."""
-    return float(min(np.mean([scores[s][k] for k in KEYS]) for s in items))
+    return min(_per_item(scores, items))
 
 
 OBJECTIVES = {"mean": objective, "worst": worst_objective}
@@ -411,6 +416,7 @@ def run(cache: str | None = None, workers: int = 2, folds: str | None = None, mi
     out_json = Path(out_json or cache.with_suffix(".json"))
     scorer = Scorer(cache, workers)
     start_points = starts(restarts)
+    goal_of = OBJECTIVES[goal]
     results: dict = {}
     try:
         for fold in (folds or "all," + ",".join(SEQUENCES)).split(","):
@@ -419,13 +425,13 @@ def run(cache: str | None = None, workers: int = 2, folds: str | None = None, mi
             ends = []
             for k, start in enumerate(start_points):
                 log(f"  start {k}")
-                point, path = coordinate_search(scorer, train, start, min_gain, log=log, objective=OBJECTIVES[goal])
-                ends.append((OBJECTIVES[goal](scorer.scores([point])[0], train), k, point, path))
+                point, path = coordinate_search(scorer, train, start, min_gain, log=log, objective=goal_of)
+                ends.append((goal_of(scorer.scores([point])[0], train), k, point, path))
             _, k, point, path = max(ends, key=lambda e: (e[0], -e[1]))
             log(f"  chosen: the end of start {k}")
             all_scores = scorer.scores([point])[0]
             results[fold] = {"point": point, "changes": changes(point, START), "path": path, "start": k,
-                             "train_objective": OBJECTIVES[goal](all_scores, train),
+                             "train_objective": goal_of(all_scores, train),
                              "held_out": {i: all_scores[i] for i in items_of([fold])}, "scores": all_scores}
             for item in items_of([fold]) if fold in SEQUENCES else []:
                 s = all_scores[item]

@@ -1,9 +1,11 @@
-"""The offline pass's duplicate test (offline.duplicates): one person detected twice."""
+"""The offline pass: the duplicate test (offline.duplicates: one person detected twice) and
+stitching across a gap (offline.stitch), with a still and with a panning camera."""
 
 import numpy as np
 
+from artmotion.tracking.camera import CameraPath
 from artmotion.tracking.config import TrackerConfig
-from artmotion.tracking.offline import duplicates
+from artmotion.tracking.offline import duplicates, stitch
 from artmotion.tracking.state import DETECTED, INTERPOLATED
 
 
@@ -73,3 +75,46 @@ def test_partly_nested_weaker_track_loses_only_the_nested_frames():
     other.update(_walker(600, 0.0, range(31, 91), score=0.5))
     out = duplicates({1: person, 2: other}, share=0.2, drift=0.06)
     assert out[1] == person and sorted(out[2]) == list(range(31, 91))
+
+
+# --------------------------------------------------------------------------- stitching
+HIST = np.full(8, 1 / 8)
+STITCH = TrackerConfig(stitch=True, max_gap=2.0, stitch_dist=0.25, stitch_kl=1.5, max_interp=2.0)
+
+
+def _stitch(pieces: dict, camera=None):
+    return stitch(pieces, {i: HIST for i in pieces}, STITCH, fps=10.0, camera=camera)
+
+
+def test_stitch_joins_a_walker_across_a_gap_and_fills_it_linearly():
+    a, b = _walker(100, 4.0, range(1, 11)), _walker(100, 4.0, range(21, 31))
+    far = _walker(400, 4.0, range(21, 31))
+    out, relabel, _ = _stitch({1: a, 2: b, 3: far})
+    assert relabel == {2: 1} and set(out) == {1, 3}
+    assert sorted(out[1]) == list(range(1, 31))
+    for f in range(11, 21):
+        box, kind, _ = out[1][f]
+        assert kind == INTERPOLATED
+        np.testing.assert_allclose(box, [100 + 4.0 * f, 100, 40, 120], atol=1e-6)
+    # switched off, nothing joins
+    off, relabel, _ = stitch({1: a, 2: b}, {1: HIST, 2: HIST}, TrackerConfig(stitch=False), fps=10.0)
+    assert relabel == {} and set(off) == {1, 2}
+
+
+def test_stitch_takes_the_camera_motion_out_of_the_gap():
+    """A person standing still while the camera pans 15 px/frame during the gap only: in the
+    image they jump 150 px, which only the camera explains."""
+    cam = CameraPath()
+    pan = np.array([[1.0, 0.0, -15.0], [0.0, 1.0, 0.0]])
+    for f in range(11, 21):
+        cam.add(f, pan)
+    a, b = _walker(300, 0.0, range(1, 11)), _walker(150, 0.0, range(21, 31))
+    # without the camera's motion, a still person 150 px away is someone else
+    _, relabel, _ = _stitch({1: a, 2: b})
+    assert relabel == {}
+    out, relabel, _ = _stitch({1: a, 2: b}, camera=cam)
+    assert relabel == {2: 1}
+    for f in range(11, 21):
+        # the filled box stays on the person's spot in the world, which the camera moves
+        np.testing.assert_allclose(out[1][f][0], [300 - 15.0 * (f - 10), 100, 40, 120], atol=1e-6)
+    np.testing.assert_allclose(cam.from_ref(25, cam.to_ref(25, [5, 6, 7, 8])), [[5, 6, 7, 8]], atol=1e-9)

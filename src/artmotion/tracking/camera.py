@@ -23,7 +23,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-__all__ = ["CameraMotion", "estimate_motion"]
+__all__ = ["CameraMotion", "CameraPath", "estimate_motion"]
 
 
 _LK: dict[str, Any] = dict(winSize=(11, 11), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03))
@@ -165,3 +165,53 @@ class CameraMotion:
         A = A_small.copy()
         A[:, 2] /= scale
         return A
+
+
+class CameraPath:
+    """The camera's motion over a whole sequence, for the offline pass: :meth:`add` records each
+    frame's 2×3 similarity (previous frame -> this one; frames without one did not move), and
+    :meth:`to_ref` / :meth:`from_ref` map boxes between a frame's pixels and those of the first
+    frame (the composed similarities), so that a trajectory through a gap is extrapolated and
+    interpolated where the camera's own motion has been taken out (Sec. 2.5.3 on a moving camera).
+    """
+
+    def __init__(self) -> None:
+        self._steps: dict[int, np.ndarray] = {}
+        self._cum: dict[int, np.ndarray] = {}
+        self._keys = np.zeros(0, dtype=int)
+
+    def add(self, frame: int, A: np.ndarray) -> None:
+        self._steps[int(frame)] = np.vstack([np.asarray(A, dtype=float), [0.0, 0.0, 1.0]])
+        self._cum.clear()
+
+    def __bool__(self) -> bool:
+        return bool(self._steps)
+
+    def _to_ref(self, frame: int) -> np.ndarray:
+        """3×3 map of ``frame``'s pixels to the first frame's: the inverse of the composed steps."""
+        if not self._cum:
+            G = np.eye(3)
+            for f in sorted(self._steps):
+                G = G @ np.linalg.inv(self._steps[f])
+                self._cum[f] = G
+            self._keys = np.array(sorted(self._cum))
+        if not self._steps:
+            return np.eye(3)
+        i = int(np.searchsorted(self._keys, frame, side="right")) - 1
+        return self._cum[int(self._keys[i])] if i >= 0 else np.eye(3)
+
+    @staticmethod
+    def _map(G: np.ndarray, boxes) -> np.ndarray:
+        b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        s = float(np.sqrt(abs(np.linalg.det(G[:2, :2]))))
+        c = (b[:, :2] + 0.5 * b[:, 2:4]) @ G[:2, :2].T + G[:2, 2]
+        size = s * b[:, 2:4]
+        return np.hstack([c - 0.5 * size, size])
+
+    def to_ref(self, frame: int, boxes) -> np.ndarray:
+        """``boxes`` (x, y, w, h) of ``frame`` in the first frame's pixels."""
+        return self._map(self._to_ref(frame), boxes)
+
+    def from_ref(self, frame: int, boxes) -> np.ndarray:
+        """Inverse of :meth:`to_ref`."""
+        return self._map(np.linalg.inv(self._to_ref(frame)), boxes)

@@ -83,7 +83,7 @@ class MultiObjectTracker(OnlineTracker):
         cfg = self.cfg
         pieces = {t.id: t.piece for t in self.all_tracks if t.piece}
         hists = {t.id: t.hist for t in self.all_tracks}
-        pieces, self.relabel, self.piece_span = stitch(pieces, hists, cfg, self.fps)
+        pieces, self.relabel, self.piece_span = stitch(pieces, hists, cfg, self.fps, self.camera_path)
         pieces = {i: rec for i, rec in pieces.items() if not self._flash(rec) and self._confident(rec)}
         pieces = duplicates(pieces, cfg.duplicate_share, cfg.duplicate_drift)
         out = [[f, tid, *box, score if score > 0 else 0.5, kind]

@@ -110,26 +110,38 @@ def track_pieces(track, dt: float, smooth: bool, max_interp: int, tail: int) -> 
     return out
 
 
-def _end_state(rec: dict, at_start: bool, k: int):
-    """Frame, position, velocity (px/frame) and size at one end of a tracklet, from its detections."""
+def _end_state(rec: dict, at_start: bool, k: int, camera=None):
+    """Frame, position, velocity (px/frame) and size at one end of a tracklet, from its detections
+    (in the first frame's pixels when ``camera``, a :class:`~artmotion.tracking.camera.CameraPath`,
+    has motion)."""
     fs = sorted(f for f in rec if rec[f][1] in (DETECTED, TENTATIVE)) or sorted(rec)
     fs = fs[:k] if at_start else fs[-k:]
-    cs = np.array([box_center(rec[f][0]) for f in fs])
-    f_end = fs[0] if at_start else fs[-1]
+    boxes = np.array([rec[f][0] for f in fs], dtype=float)
+    if camera:
+        boxes = np.vstack([camera.to_ref(f, b) for f, b in zip(fs, boxes)])
+    cs = boxes[:, :2] + 0.5 * boxes[:, 2:4]
+    i_end = 0 if at_start else len(fs) - 1
     v = (cs[-1] - cs[0]) / (fs[-1] - fs[0]) if len(fs) >= 2 and fs[-1] > fs[0] else np.zeros(2)
-    sizes = np.array([rec[f][0][2:4] for f in fs])
-    return f_end, box_center(rec[f_end][0]), v, np.median(sizes, axis=0)
+    return fs[i_end], cs[i_end], v, np.median(boxes[:, 2:4], axis=0)
 
 
-def _interpolate(rec: dict, a: int, b: int) -> None:
-    ca, cb = box_center(rec[a][0]), box_center(rec[b][0])
-    sa, sb = rec[a][0][2:4], rec[b][0][2:4]
+def _interpolate(rec: dict, a: int, b: int, camera=None) -> None:
+    """Fill the frames between ``a`` and ``b`` linearly (in the first frame's pixels when the
+    camera moved: a still person stays on the background they stand on)."""
+    ba, bb = np.asarray(rec[a][0], dtype=float), np.asarray(rec[b][0], dtype=float)
+    if camera:
+        ba, bb = camera.to_ref(a, ba)[0], camera.to_ref(b, bb)[0]
+    ca, cb = box_center(ba), box_center(bb)
+    sa, sb = ba[2:4], bb[2:4]
     for f in range(a + 1, b):
         u = (f - a) / (b - a)
-        rec[f] = [box_from_center((1 - u) * ca + u * cb, (1 - u) * sa + u * sb), INTERPOLATED, 0.0]
+        box = box_from_center((1 - u) * ca + u * cb, (1 - u) * sa + u * sb)
+        if camera:
+            box = camera.from_ref(f, box)[0]
+        rec[f] = [box, INTERPOLATED, 0.0]
 
 
-def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict]:
+def stitch(pieces: dict, hists: dict, cfg, fps: float, camera=None) -> tuple[dict, dict, dict]:
     """Join tracklets of one person across a gap (motion and appearance agree), Sec. 2.5.3-2.5.4.
 
     Returns ``(pieces, relabel, span)``: the joined pieces, ``relabel`` (tracker id of a joined
@@ -137,7 +149,9 @@ def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict
     output). A tracklet ending at frame ``a`` and one starting at ``b > a`` within ``max_gap``
     seconds are the same person when the constant-velocity extrapolation meets the new start
     within a distance that grows with the gap, the box sizes agree and the RGB histograms are
-    close (KL divergence).
+    close (KL divergence). With ``camera`` (:class:`~artmotion.tracking.camera.CameraPath`) the
+    extrapolation and the filled gap are in the first frame's pixels: the camera's own motion over
+    the gap is taken out, as in the online prediction.
     """
     span = {i: (min(r), max(r)) for i, r in pieces.items() if r}
     relabel: dict[int, int] = {}
@@ -146,10 +160,10 @@ def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict
     k = max(2, int(round(0.5 * fps)))
     max_gap = max(1, int(round(cfg.max_gap * fps)))
     max_fill = int(round(cfg.max_interp * fps)) if cfg.max_interp > 0 else 0
-    starts = {j: _end_state(r, True, k) for j, r in pieces.items()}
+    starts = {j: _end_state(r, True, k, camera) for j, r in pieces.items()}
     cand = []
     for i, ri in pieces.items():
-        fa, ca, va, sa = _end_state(ri, False, k)
+        fa, ca, va, sa = _end_state(ri, False, k, camera)
         for j in pieces:
             if i == j or span[j][0] <= span[i][1]:
                 continue
@@ -191,7 +205,7 @@ def stitch(pieces: dict, hists: dict, cfg, fps: float) -> tuple[dict, dict, dict
             span[q] = (span[q][0], fb - 1)
             span[j] = (fb, span[j][1])
             if fb - fa - 1 <= max_fill:
-                _interpolate(rec, fa, fb)
+                _interpolate(rec, fa, fb, camera)
             relabel[j] = i
             q = j
         out[i] = rec

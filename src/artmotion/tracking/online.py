@@ -31,7 +31,7 @@ import numpy as np
 from artmotion.geometry import iou_matrix
 from artmotion.tracking.appearance import kl_matrix, rgb_histogram
 from artmotion.tracking.association import INF, assign, iou_cost
-from artmotion.tracking.camera import CameraMotion
+from artmotion.tracking.camera import CameraMotion, CameraPath
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import track_ends
 from artmotion.tracking.experts import Entity, Frame
@@ -113,6 +113,7 @@ class OnlineTracker:
         self.bank = KalmanBank(accel=cfg.accel if self.use_motion else 1e3, size_accel=cfg.size_accel,
                                meas=cfg.meas, size_meas=cfg.size_meas)
         self.camera = CameraMotion(self.fps) if cfg.camera else None
+        self.camera_path = CameraPath()     #: every frame's camera motion, for the offline pass
         self.noise = (NoiseEstimator(self.bank.rel_sd, self.bank.rel_accel, self.dt, horizon=cfg.noise_horizon)
                       if cfg.adapt_noise and self.use_motion else None)
         self.tracks: list[Track] = []        #: live tracks
@@ -219,6 +220,7 @@ class OnlineTracker:
             A = self.camera.step(frame.grey, frame.scale,
                                  exclude=[t.box for t in tracks if t.state == "confirmed"])
             if A is not None:
+                self.camera_path.add(n, A)
                 warp = warp_matrix(A)
                 self.bank.warp(slots, A)
             frame.shared["camera_moving"] = self.camera.moving

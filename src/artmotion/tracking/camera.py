@@ -189,14 +189,14 @@ class CameraPath:
 
     def _to_ref(self, frame: int) -> np.ndarray:
         """3×3 map of ``frame``'s pixels to the first frame's: the inverse of the composed steps."""
+        if not self._steps:
+            return np.eye(3)
         if not self._cum:
             G = np.eye(3)
             for f in sorted(self._steps):
                 G = G @ np.linalg.inv(self._steps[f])
                 self._cum[f] = G
             self._keys = np.array(sorted(self._cum))
-        if not self._steps:
-            return np.eye(3)
         i = int(np.searchsorted(self._keys, frame, side="right")) - 1
         return self._cum[int(self._keys[i])] if i >= 0 else np.eye(3)
 

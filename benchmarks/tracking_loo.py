@@ -11,6 +11,13 @@ best training objective is the fold's choice. The held-out sequence is then scor
 scores never enter the choice. The defaults of the package are the same procedure run on all five
 sequences (``fold: all``); the leave-one-out scores estimate how well the procedure transfers.
 
+Two variants of the procedure: ``--agree`` accepts only moves that more training sequences gain
+from than lose (each sequence's items averaged; a move must not be one sequence's large gain paid
+for by the others), ``--objective worst`` maximises the worst training item instead of the mean.
+``--builtin`` adds five items, the sequences with the built-in SSDLite detector's boxes on every
+second frame (what ``artmotion track`` uses without detections; cached by
+``benchmarks/detector.py``).
+
 Every configuration is scored on every sequence once and cached (``--cache``, JSON lines), so
 folds share work and a re-run only computes what is new. Frames are decoded once per sequence (at
 the size the tracker works at) and the tracker runs in two forked worker processes.
@@ -22,6 +29,7 @@ low-score detections), reporting the mean MOTA/IDF1/HOTA over the five sequences
 Usage::
 
     python benchmarks/tracking_loo.py [--cache out/tracking_loo.jsonl] [--workers 2] [--folds all,PETS09-S2L1,...]
+        [--agree] [--builtin] [--objective mean|worst] [--no-ablation]
 
 Prints the tables; ``benchmarks/tracking.py`` writes them into docs/tracking.md.
 """
@@ -44,6 +52,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from artmotion.tracking import DEFAULT_EXPERTS, TrackerConfig, open_sequence, run_tracker  # noqa: E402
 from artmotion.tracking.api import _work_reduce  # noqa: E402
+from artmotion.tracking.config import DETECT_EVERY  # noqa: E402
 from artmotion.tracking.detect import load_detections  # noqa: E402
 from artmotion.tracking.metrics import evaluate  # noqa: E402
 from artmotion.tracking.mot import MultiObjectTracker  # noqa: E402
@@ -61,6 +70,16 @@ WEAK = {"ETH-Sunnyday": "det_acf.txt", "KITTI-17": "det_acf.txt", "MOT16-09": "d
 #: what a point is scored on: each sequence with its published detections (``det.txt``), and
 #: ``"SEQ:det_x.txt"`` with its weak ones; a fold holds out every item of its sequence
 ITEMS = [*SEQUENCES, *(f"{n}:{d}" for n, d in WEAK.items())]
+#: the built-in detector's boxes (``benchmarks/detector.py``'s cache), used on every
+#: ``DETECT_EVERY``-th frame as ``artmotion track`` does without detections
+BUILTIN = "ssdlite"
+
+
+def use_builtin() -> None:
+    """Add the five sequences with the built-in detector's boxes to :data:`ITEMS` (``--builtin``)."""
+    ITEMS.extend(i for i in (f"{n}:{BUILTIN}" for n in SEQUENCES) if i not in ITEMS)
+
+
 KEYS = ("MOTA", "IDF1", "HOTA")
 
 #: candidate values of every setting searched (``experts``: the tracking experts)
@@ -201,7 +220,11 @@ def _load(name: str, det: str = "det.txt"):
         red = _work_reduce(seq.width, seq.height)
         _FRAMES[name] = (seq, red, list(seq.frames(reduce=red)))
     if (name, det) not in _DETS:
-        _DETS[(name, det)] = load_detections(path / "det" / det)
+        if det == BUILTIN:
+            from detector import _hash, detections  # benchmarks/detector.py imports this module
+            _DETS[(name, det)] = detections(name, "ssdlite-300", ROOT / "out" / f"detections-{_hash()}")[0]
+        else:
+            _DETS[(name, det)] = load_detections(path / "det" / det)
     return (*_FRAMES[name], _DETS[(name, det)], path / "gt" / "gt.txt")
 
 
@@ -217,7 +240,8 @@ def score_point(point: dict, names=None) -> dict:
         tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=cfg,
                                      online=bool(point.get("online", False)))
         t0 = time.perf_counter()
-        n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red)
+        n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red,
+                        detect_every=DETECT_EVERY if det == BUILTIN else 1)
         rows, _ = tracker.finish(n)
         seconds = time.perf_counter() - t0
         s = evaluate(gt, rows)
@@ -278,11 +302,30 @@ def _valid(point: dict) -> bool:
     return point["low"] <= point["high"]
 
 
+def _by_sequence(scores: dict, items) -> dict:
+    """Each sequence's mean over its ``items`` of (MOTA + IDF1 + HOTA) / 3."""
+    per: dict[str, list] = {}
+    for item, v in zip(items, _per_item(scores, items)):
+        per.setdefault(item.split(":")[0], []).append(v)
+    return {k: float(np.mean(v)) for k, v in per.items()}
+
+
+def agrees(new: dict, old: dict, items, tol: float = 0.001) -> bool:
+    """More training sequences gain than lose (each by more than ``tol``) going from ``old`` to
+    ``new``: a move must not be one sequence's large gain paid for by the others."""
+    a, b = _by_sequence(new, items), _by_sequence(old, items)
+    up = sum(a[k] > b[k] + tol for k in a)
+    down = sum(a[k] < b[k] - tol for k in a)
+    return up > down
+
+
 def coordinate_search(scorer: Scorer, train: list[str], start: dict, min_gain: float, max_passes: int = 6,
-                      log=print, objective=objective) -> tuple[dict, list]:
-    """Greedy coordinate ascent of ``objective`` (:data:`OBJECTIVES`) on ``train`` from ``start``."""
+                      log=print, objective=objective, agree: bool = False) -> tuple[dict, list]:
+    """Greedy coordinate ascent of ``objective`` (:data:`OBJECTIVES`) on ``train`` from ``start``;
+    with ``agree``, only moves that more training sequences gain from than lose (:func:`agrees`)."""
     point = dict(start)
-    best = objective(scorer.scores([point])[0], train)
+    current = scorer.scores([point])[0]
+    best = objective(current, train)
     path = [("start", None, best)]
     for p in range(max_passes):
         moved = False
@@ -293,11 +336,12 @@ def coordinate_search(scorer: Scorer, train: list[str], start: dict, min_gain: f
             cands = [c for c in cands if _valid(c)]
             if not cands:
                 continue
-            objs = [objective(s, train) for s in scorer.scores(cands)]
+            cand_scores = scorer.scores(cands)
+            objs = [objective(s, train) if not agree or agrees(s, current, train) else -np.inf for s in cand_scores]
             i = int(np.argmax(objs))
             if objs[i] > best + min_gain:
                 log(f"    pass {p + 1}: {name} {point[name]} -> {cands[i][name]}: {100 * best:.2f} -> {100 * objs[i]:.2f}")
-                point, best = cands[i], objs[i]
+                point, best, current = cands[i], objs[i], cand_scores[i]
                 path.append((name, point[name], best))
                 moved = True
         if not moved:
@@ -330,8 +374,9 @@ def held_out_table(results: dict) -> str:
             lines.append(f"| {name} | {det} | {_cells(held[item])} | {100 * r['train_objective']:.1f} | "
                          f"{r['changes'] or '(none)'} |")
     main = [i for i in held if ":" not in i]
-    weak = [i for i in held if ":" in i]
-    for label, items in (("published", main), ("weak", weak)):
+    weak = [i for i in held if ":" in i and not i.endswith(BUILTIN)]
+    builtin = [i for i in held if i.endswith(BUILTIN)]
+    for label, items in (("published", main), ("weak", weak), ("built-in SSDLite", builtin)):
         if items:
             lines.append(f"| **mean** | {label} | {_cells(_means(held, items))} | | |")
             if "textbook" in results:
@@ -394,7 +439,7 @@ def ablation_table(scorer: Scorer, base: dict) -> str:
     ones, and the objective over all items, for the defaults and each variant."""
     rows = [("**defaults**", base)] + ablations(base)
     scores = scorer.scores([p for _, p in rows])
-    main, weak = list(SEQUENCES), [i for i in ITEMS if ":" in i]
+    main, weak = list(SEQUENCES), [i for i in ITEMS if ":" in i and not i.endswith(BUILTIN)]
     lines = ["| variant | published: MOTA | IDF1 | HOTA | weak: MOTA | IDF1 | HOTA | objective (all) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|"]
     b = objective(scores[0], ITEMS)
@@ -407,7 +452,7 @@ def ablation_table(scorer: Scorer, base: dict) -> str:
 
 def run(cache: str | None = None, workers: int = 2, folds: str | None = None, min_gain: float = 0.001,
         out_json: str | None = None, restarts: int = 1, ablation: bool = True, log=print,
-        goal: str = "mean") -> dict:
+        goal: str = "mean", agree: bool = False) -> dict:
     """Run the folds, then the ablation of the ``all`` fold's choice; return (and save as JSON)
     ``{fold: {point, changes, path, train_objective, held_out, scores}, "ablation": table}``.
     Each fold runs the coordinate search from :func:`starts` (``restarts`` points) and keeps the
@@ -425,7 +470,7 @@ def run(cache: str | None = None, workers: int = 2, folds: str | None = None, mi
             ends = []
             for k, start in enumerate(start_points):
                 log(f"  start {k}")
-                point, path = coordinate_search(scorer, train, start, min_gain, log=log, objective=goal_of)
+                point, path = coordinate_search(scorer, train, start, min_gain, log=log, objective=goal_of, agree=agree)
                 ends.append((goal_of(scorer.scores([point])[0], train), k, point, path))
             _, k, point, path = max(ends, key=lambda e: (e[0], -e[1]))
             log(f"  chosen: the end of start {k}")
@@ -457,9 +502,16 @@ def main(argv=None) -> int:
     ap.add_argument("--no-ablation", action="store_true", help="only the folds")
     ap.add_argument("--objective", choices=sorted(OBJECTIVES), default="mean",
                     help="what a fold maximises over its training items: their mean, or the worst one")
+    ap.add_argument("--agree", action="store_true",
+                    help="accept only moves that more training sequences gain from than lose")
+    ap.add_argument("--builtin", action="store_true",
+                    help="five more items: the sequences with the built-in detector's boxes (every second frame)")
     args = ap.parse_args(argv)
+    if args.builtin:
+        use_builtin()
     results = run(args.cache, args.workers, args.folds, args.min_gain, restarts=args.restarts,
-                  ablation=not args.no_ablation, log=lambda m: print(m, flush=True), goal=args.objective)
+                  ablation=not args.no_ablation, log=lambda m: print(m, flush=True), goal=args.objective,
+                  agree=args.agree)
     print(held_out_table(results))
     if "ablation" in results:
         print(results["ablation"])

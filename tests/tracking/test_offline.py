@@ -118,3 +118,18 @@ def test_stitch_takes_the_camera_motion_out_of_the_gap():
         # the filled box stays on the person's spot in the world, which the camera moves
         np.testing.assert_allclose(out[1][f][0], [300 - 15.0 * (f - 10), 100, 40, 120], atol=1e-6)
     np.testing.assert_allclose(cam.from_ref(25, cam.to_ref(25, [5, 6, 7, 8])), [[5, 6, 7, 8]], atol=1e-9)
+
+
+def test_camera_path_composes_the_steps_and_scales_the_boxes():
+    """Two steps, a zoom by 2 about the origin then a shift: a box of frame 3 maps back to frame 1
+    by undoing both; frames before the first step and between steps keep the last map."""
+    cam = CameraPath()
+    cam.add(2, np.array([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]))
+    cam.add(3, np.array([[1.0, 0.0, 10.0], [0.0, 1.0, -4.0]]))
+    box = np.array([50.0, 60.0, 20.0, 40.0])          # centre (60, 80) in frame 3
+    # undo the shift: centre (50, 84); undo the zoom: centre (25, 42), size (10, 20)
+    np.testing.assert_allclose(cam.to_ref(3, box), [[20.0, 32.0, 10.0, 20.0]], atol=1e-9)
+    np.testing.assert_allclose(cam.to_ref(1, box), [box], atol=1e-9)
+    np.testing.assert_allclose(cam.to_ref(7, box), cam.to_ref(3, box), atol=1e-9)
+    np.testing.assert_allclose(cam.from_ref(3, cam.to_ref(3, box)), [box], atol=1e-9)
+    assert not CameraPath() and cam

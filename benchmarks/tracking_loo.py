@@ -73,6 +73,8 @@ ITEMS = [*SEQUENCES, *(f"{n}:{d}" for n, d in WEAK.items())]
 #: the built-in detector's boxes (``benchmarks/detector.py``'s cache), used on every
 #: ``DETECT_EVERY``-th frame as ``artmotion track`` does without detections
 BUILTIN = "ssdlite"
+#: where its boxes are cached (default: ``out/detections-<hash of detectors.py>``, as detector.py)
+BUILTIN_CACHE: Path | None = None
 
 
 def use_builtin() -> None:
@@ -199,6 +201,12 @@ def worst_objective(scores: dict, items) -> float:
 OBJECTIVES = {"mean": objective, "worst": worst_objective}
 
 
+def weak_items(items) -> list[str]:
+    """The items of ``items`` with weak detections (not the published ones, not the built-in
+    detector's)."""
+    return [i for i in items if ":" in i and not i.endswith(BUILTIN)]
+
+
 def items_of(seqs) -> list[str]:
     """The items (:data:`ITEMS`) of the sequences ``seqs``."""
     return [i for i in ITEMS if i.split(":")[0] in seqs]
@@ -222,7 +230,8 @@ def _load(name: str, det: str = "det.txt"):
     if (name, det) not in _DETS:
         if det == BUILTIN:
             from detector import _hash, detections  # benchmarks/detector.py imports this module
-            _DETS[(name, det)] = detections(name, "ssdlite-300", ROOT / "out" / f"detections-{_hash()}")[0]
+            cache = BUILTIN_CACHE or ROOT / "out" / f"detections-{_hash()}"
+            _DETS[(name, det)] = detections(name, "ssdlite-300", cache)[0]
         else:
             _DETS[(name, det)] = load_detections(path / "det" / det)
     return (*_FRAMES[name], _DETS[(name, det)], path / "gt" / "gt.txt")
@@ -374,7 +383,7 @@ def held_out_table(results: dict) -> str:
             lines.append(f"| {name} | {det} | {_cells(held[item])} | {100 * r['train_objective']:.1f} | "
                          f"{r['changes'] or '(none)'} |")
     main = [i for i in held if ":" not in i]
-    weak = [i for i in held if ":" in i and not i.endswith(BUILTIN)]
+    weak = weak_items(held)
     builtin = [i for i in held if i.endswith(BUILTIN)]
     for label, items in (("published", main), ("weak", weak), ("built-in SSDLite", builtin)):
         if items:
@@ -439,7 +448,7 @@ def ablation_table(scorer: Scorer, base: dict) -> str:
     ones, and the objective over all items, for the defaults and each variant."""
     rows = [("**defaults**", base)] + ablations(base)
     scores = scorer.scores([p for _, p in rows])
-    main, weak = list(SEQUENCES), [i for i in ITEMS if ":" in i and not i.endswith(BUILTIN)]
+    main, weak = list(SEQUENCES), weak_items(ITEMS)
     lines = ["| variant | published: MOTA | IDF1 | HOTA | weak: MOTA | IDF1 | HOTA | objective (all) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|"]
     b = objective(scores[0], ITEMS)

@@ -32,27 +32,26 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+import tracking_loo  # noqa: E402
 from _docs import replace_block  # noqa: E402
-from detector import _hash, detections, track_scores  # noqa: E402
-from tracking_loo import ITEMS, SEQUENCES, _cells, _load, _means  # noqa: E402
+from detector import _hash, track_scores  # noqa: E402
+from tracking_loo import BUILTIN, ITEMS, SEQUENCES, _cells, _load, _means, weak_items  # noqa: E402
 from tracking_loo import objective as loo_objective  # noqa: E402
 
 from artmotion.tracking import DEFAULT_EXPERTS, TrackerConfig  # noqa: E402
+from artmotion.tracking.config import DETECT_EVERY  # noqa: E402
 
-ALL_ITEMS = [*ITEMS, *(f"{n}:ssdlite" for n in SEQUENCES)]
+ALL_ITEMS = [*ITEMS, *(f"{n}:{BUILTIN}" for n in SEQUENCES)]
 _DATA: dict = {}
 
 
 def _prepare(cache: Path) -> None:
-    """Frames (tracking_loo's loader caches them) and detections of every item, loaded before the
+    """Frames and detections of every item (tracking_loo's loader caches them), loaded before the
     workers fork: ``{item: (detections, every k-th frame detected)}``."""
+    tracking_loo.BUILTIN_CACHE = cache
     for item in ALL_ITEMS:
         name, _, det = item.partition(":")
-        if det == "ssdlite":
-            _load(name)
-            _DATA[item] = (detections(name, "ssdlite-300", cache)[0], 2)
-        else:
-            _DATA[item] = (_load(name, det or "det.txt")[3], 1)
+        _DATA[item] = (_load(name, det or "det.txt")[3], DETECT_EVERY if det == BUILTIN else 1)
 
 
 def _score(job: tuple[str, dict, str]) -> tuple[str, str, dict]:
@@ -95,8 +94,8 @@ def tables(res: dict) -> str:
             held[item] = res[choice][item]
             lines.append(f"| {name} | {choice} | {item.partition(':')[2] or 'det.txt'} | {_cells(held[item])} | "
                          f"{_cells(res['off'][item]).replace(' | ', ' / ')} |")
-    for group, items in (("published", list(SEQUENCES)), ("weak", [i for i in ITEMS if ":" in i]),
-                         ("SSDLite", [i for i in ALL_ITEMS if i.endswith(":ssdlite")])):
+    for group, items in (("published", list(SEQUENCES)), ("weak", weak_items(ITEMS)),
+                         ("SSDLite", [i for i in ALL_ITEMS if i.endswith(BUILTIN)])):
         lines.append(f"| **mean** | | {group} | {_cells(_means(held, items))} | "
                      f"{_cells(_means(res['off'], items)).replace(' | ', ' / ')} |")
     summary = (f"Held-out objective over the thirteen items {objective(held, ALL_ITEMS):.2f} against "

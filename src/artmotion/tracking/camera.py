@@ -18,10 +18,13 @@ seconds.
 
 from __future__ import annotations
 
+import bisect
 from typing import Any
 
 import cv2
 import numpy as np
+
+from artmotion.tracking.state import boxes_to_z, z_to_boxes
 
 __all__ = ["CameraMotion", "CameraPath", "estimate_motion"]
 
@@ -169,44 +172,39 @@ class CameraMotion:
 
 class CameraPath:
     """The camera's motion over a whole sequence, for the offline pass: :meth:`add` records each
-    frame's 2×3 similarity (previous frame -> this one; frames without one did not move), and
-    :meth:`to_ref` / :meth:`from_ref` map boxes between a frame's pixels and those of the first
-    frame (the composed similarities), so that a trajectory through a gap is extrapolated and
-    interpolated where the camera's own motion has been taken out (Sec. 2.5.3 on a moving camera).
+    frame's 2×3 similarity (previous frame -> this one, in frame order; frames without one did not
+    move), and :meth:`to_ref` / :meth:`from_ref` map boxes between a frame's pixels and those of
+    the first frame (the composed similarities), so that a trajectory through a gap is extrapolated
+    and interpolated where the camera's own motion has been taken out (Sec. 2.5.3 on a moving
+    camera).
     """
 
     def __init__(self) -> None:
-        self._steps: dict[int, np.ndarray] = {}
-        self._cum: dict[int, np.ndarray] = {}
-        self._keys = np.zeros(0, dtype=int)
+        self._frames: list[int] = []            # frames with a step, increasing
+        self._to_first: list[np.ndarray] = []   # 3×3 map of each one's pixels to the first frame's
 
     def add(self, frame: int, A: np.ndarray) -> None:
-        self._steps[int(frame)] = np.vstack([np.asarray(A, dtype=float), [0.0, 0.0, 1.0]])
-        self._cum.clear()
+        if self._frames and frame <= self._frames[-1]:
+            raise ValueError(f"camera steps must come in frame order ({frame} after {self._frames[-1]})")
+        step = np.vstack([np.asarray(A, dtype=float), [0.0, 0.0, 1.0]])
+        G = self._to_first[-1] if self._to_first else np.eye(3)
+        self._frames.append(int(frame))
+        self._to_first.append(G @ np.linalg.inv(step))
 
     def __bool__(self) -> bool:
-        return bool(self._steps)
+        return bool(self._frames)
 
     def _to_ref(self, frame: int) -> np.ndarray:
-        """3×3 map of ``frame``'s pixels to the first frame's: the inverse of the composed steps."""
-        if not self._steps:
-            return np.eye(3)
-        if not self._cum:
-            G = np.eye(3)
-            for f in sorted(self._steps):
-                G = G @ np.linalg.inv(self._steps[f])
-                self._cum[f] = G
-            self._keys = np.array(sorted(self._cum))
-        i = int(np.searchsorted(self._keys, frame, side="right")) - 1
-        return self._cum[int(self._keys[i])] if i >= 0 else np.eye(3)
+        """3×3 map of ``frame``'s pixels to the first frame's: that of the last step up to it."""
+        i = bisect.bisect_right(self._frames, frame) - 1
+        return self._to_first[i] if i >= 0 else np.eye(3)
 
     @staticmethod
     def _map(G: np.ndarray, boxes) -> np.ndarray:
-        b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-        s = float(np.sqrt(abs(np.linalg.det(G[:2, :2]))))
-        c = (b[:, :2] + 0.5 * b[:, 2:4]) @ G[:2, :2].T + G[:2, 2]
-        size = s * b[:, 2:4]
-        return np.hstack([c - 0.5 * size, size])
+        z = boxes_to_z(boxes)
+        z[:, :2] = z[:, :2] @ G[:2, :2].T + G[:2, 2]
+        z[:, 2:4] *= float(np.sqrt(abs(np.linalg.det(G[:2, :2]))))
+        return z_to_boxes(z)
 
     def to_ref(self, frame: int, boxes) -> np.ndarray:
         """``boxes`` (x, y, w, h) of ``frame`` in the first frame's pixels."""

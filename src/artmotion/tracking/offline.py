@@ -30,7 +30,7 @@ import numpy as np
 
 from artmotion.geometry import box_center, box_from_center
 from artmotion.tracking.appearance import kl_divergence
-from artmotion.tracking.state import DETECTED, GROUP, INTERPOLATED, TENTATIVE, z_to_boxes
+from artmotion.tracking.state import DETECTED, GROUP, INTERPOLATED, TENTATIVE, boxes_to_z, z_to_boxes
 
 __all__ = ["duplicates", "rts_smooth", "stitch", "track_pieces"]
 
@@ -119,10 +119,10 @@ def _end_state(rec: dict, at_start: bool, k: int, camera=None):
     boxes = np.array([rec[f][0] for f in fs], dtype=float)
     if camera:
         boxes = np.vstack([camera.to_ref(f, b) for f, b in zip(fs, boxes)])
-    cs = boxes[:, :2] + 0.5 * boxes[:, 2:4]
+    z = boxes_to_z(boxes)                      # centres and sizes
     i_end = 0 if at_start else len(fs) - 1
-    v = (cs[-1] - cs[0]) / (fs[-1] - fs[0]) if len(fs) >= 2 and fs[-1] > fs[0] else np.zeros(2)
-    return fs[i_end], cs[i_end], v, np.median(boxes[:, 2:4], axis=0)
+    v = (z[-1, :2] - z[0, :2]) / (fs[-1] - fs[0]) if len(fs) >= 2 and fs[-1] > fs[0] else np.zeros(2)
+    return fs[i_end], z[i_end, :2], v, np.median(z[:, 2:4], axis=0)
 
 
 def _interpolate(rec: dict, a: int, b: int, camera=None) -> None:

@@ -9,8 +9,10 @@ import pytest
 from artmotion.articulation.synthetic import part_video
 from artmotion.articulation.video import analyze_video
 from artmotion.articulation.video.joint import plane_rectifier
-from artmotion.articulation.video.segment import chain_affines, factorise_motion
+from artmotion.articulation.video.segment import chain_affines, factorise_motion, moving_tracks, noise_level
+from artmotion.articulation.video.tracks import PointTracks, point_tracks
 from artmotion.geometry.affine import apply
+from artmotion.io.sequence import open_sequence
 
 
 def test_turning_part_is_revolute_about_its_pivot(tmp_path):
@@ -119,6 +121,32 @@ def test_factorised_motion_down_weights_a_dragged_track():
     robust, *_ = factorise_motion(xy, np.arange(n), similarity=True)
     plain, *_ = factorise_motion(xy, np.arange(n), similarity=True, nu=None)
     assert worst(robust) < 1.0 < worst(plain)
+
+
+def _tracks(path) -> PointTracks:
+    seq = open_sequence(path)
+    return point_tracks((img for _, img in seq.frames()), seq.fps)
+
+
+def test_tracks_dragged_off_their_point_are_found_and_a_moving_part_keeps_its_own(tmp_path):
+    """A part slides 80 px over the background: the tracks inside it move with their points (their
+    first place now shows something else), while background tracks that its edge drags along
+    leave their first place unchanged behind them."""
+    tr = _tracks(part_video(tmp_path / "slide.avi", "prismatic", seed=0))
+    x, y = tr.start.T
+    checked = (tr.first == 0) & (tr.checks > 0)
+    inside = checked & (x > 120) & (x < 230) & (y > 106) & (y < 134)     # the part: 110-240 x 98-142
+    outside = checked & ((x < 100) | (x > 250) | (y < 90) | (y > 150))
+    assert inside.sum() >= 10 and outside.sum() >= 10
+    assert tr.slipped[inside].mean() <= 0.05
+    assert tr.slipped[outside].mean() >= 0.3
+
+
+def test_a_hand_passing_over_a_still_scene_leaves_fewer_moving_tracks(tmp_path):
+    tr = _tracks(part_video(tmp_path / "still.avi", "static", seed=0, hand=True))
+    sigma = noise_level(tr)
+    unchecked = moving_tracks(PointTracks(tr.xy, tr.fps, tr.width, tr.height), sigma)
+    assert len(moving_tracks(tr, sigma)) < 0.8 * len(unchecked)
 
 
 def test_cli_json_and_outputs(tmp_path, run_cli):

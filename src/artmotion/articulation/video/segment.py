@@ -6,7 +6,8 @@
 * :func:`noise_level` — the tracks' own jitter (robust std of frame-to-frame steps), from which
   every later tolerance follows: nothing is a fixed number of pixels.
 * :func:`moving_tracks` — tracks that rest at first (they belong to the scene: hands and arms enter
-  moving) and later move well beyond the noise.
+  moving) and later move well beyond the noise, and did not slip off their point (a hand's edge
+  drags tracks along).
 * :func:`rigid_parts` — groups of moving tracks that share one affine image motion per frame (the
   weak-perspective image of a rigid motion), found by RANSAC over triples of nearby tracks and
   refined over the whole video; each group is a part.
@@ -34,7 +35,8 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
     tracks seen at both ends of the window stay within ``1 px + 4 sigma`` (a still camera leaves the
     scene still, while hands and arms may cover most of the image; a moving one moves nearly
     everything). Its motion is then taken out with frame-to-frame similarities fitted by RANSAC to
-    every track seen in both frames. A still camera's tracks are returned unchanged."""
+    every track seen in both frames. A still camera's tracks are returned unchanged (a moving
+    camera's without the slip checks, which compare image places, not scene places)."""
     xy = tracks.xy
     F = len(xy)
     k = max(1, int(round(tracks.fps / 3)))
@@ -68,10 +70,13 @@ def noise_level(tracks: PointTracks) -> float:
 
 def moving_tracks(tracks: PointTracks, sigma: float, rest: float = 0.25, move: float = 12.0) -> np.ndarray:
     """Indices of tracks that rest for their first ``rest`` seconds (within ``3 sigma + 0.5 px`` of
-    where they start) and later move more than ``move sigma`` (at least 4 px) from there."""
+    where they start) and later move more than ``move sigma`` (at least 4 px) from there, leaving
+    out those that slipped off their point (:attr:`PointTracks.slipped`: a hand's edge dragged them,
+    or they drifted along an edge; a point that moved leaves its first place looking different)."""
     first = tracks.first
     k = max(3, int(round(rest * tracks.fps)))
-    cand = np.flatnonzero((tracks.excursion > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k))
+    cand = np.flatnonzero((tracks.excursion > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k)
+                          & ~tracks.slipped)
     keep = [i for i in cand if tracks.visible[first[i]:first[i] + k, i].all()
             and np.linalg.norm(tracks.xy[first[i]:first[i] + k, i] - tracks.start[i], axis=1).max() < 3 * sigma + 0.5]
     return np.asarray(keep, dtype=int)

@@ -92,8 +92,19 @@ def _release_process_resources() -> None:
 
 
 def _fail(message: str, code: int) -> int:
+    """Print ``message`` as one line on stderr and return ``code``. A frame reader's thread may
+    have the file descriptor 2 pointed at a scratch file while a codec decodes
+    (``artmotion.io.media``): the line waits for it, or it would land there and be lost when the
+    process ends at once (an interrupted run)."""
     message = " ".join(part.strip() for part in message.splitlines() if part.strip())   # always one line
-    print(f"artmotion: {message}", file=sys.stderr)
+    media = sys.modules.get("artmotion.io.media")     # never imported: nothing was decoded
+    lock = media.stderr_lock if media is not None else None
+    held = lock is not None and lock.acquire(timeout=10)
+    try:
+        print(f"artmotion: {message}", file=sys.stderr, flush=True)
+    finally:
+        if held and lock is not None:
+            lock.release()
     return code
 
 

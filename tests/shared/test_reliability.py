@@ -386,6 +386,33 @@ def test_5_sigterm_during_run_leaves_no_folder(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["seq"], "a run folder or a temporary was left"
 
 
+def test_5_error_line_is_not_swallowed_by_a_decoding_thread(capfd, monkeypatch):
+    """A reader thread points the file descriptor 2 at a scratch file while a codec decodes; the
+    error line printed meanwhile (a SIGTERM in CI once left an interrupted run with exit 143 and
+    an empty stderr) waits for it instead of landing there."""
+    import threading
+
+    from artmotion import cli
+    from artmotion.io import media
+
+    decoding, done = threading.Event(), threading.Event()
+
+    def slow_decode(buf, flags):
+        decoding.set()
+        time.sleep(0.5)
+        return np.zeros((2, 2, 3), np.uint8)
+
+    monkeypatch.setattr(cv2, "imdecode", slow_decode)
+    monkeypatch.setattr(sys, "stderr", open(2, "w", closefd=False))   # the process's stderr, as in a run
+    reader = threading.Thread(target=lambda: (media._decode(np.zeros(4, np.uint8), cv2.IMREAD_COLOR), done.set()))
+    reader.start()
+    assert decoding.wait(10)
+    cli._fail("terminated by signal 15: nothing half-written was kept", 143)
+    on_stderr = capfd.readouterr().err        # read before the decode ends
+    reader.join()
+    assert on_stderr == "artmotion: terminated by signal 15: nothing half-written was kept\n"
+
+
 def test_5_pose_model_is_checked_before_tracking(tmp_path, model, monkeypatch):
     """A model whose arrays do not fit together used to load, and failed only after the whole
     video was tracked."""

@@ -196,7 +196,9 @@ _DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS param
            "Huffman table", "Bogus", "libpng error")
 #: their other messages (e.g. "libpng warning: iCCP: known incorrect sRGB profile"): not shown
 _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
-_stderr_lock = threading.Lock()
+#: held while a decode points the file descriptor 2 at its scratch file: hold it to write to the
+#: real stderr (the command line's one-line error, which a decoding thread would otherwise swallow)
+stderr_lock = threading.Lock()
 _capture = threading.local()
 
 
@@ -209,7 +211,7 @@ def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]
     read back. Anything else written to stderr meanwhile (another thread's) is passed on."""
     import cv2
 
-    with _stderr_lock:
+    with stderr_lock:
         scratch = getattr(_capture, "file", None)
         if scratch is None:
             scratch = _capture.file = tempfile.TemporaryFile()

@@ -13,8 +13,9 @@ gradient eigenvalue, ``min_eig``) — reported, not chosen: three videos cannot 
 with and without the slip test of ``point_tracks`` (tracks whose first place still looks like
 their first patch).
 Synthetic parts (turning about an axis towards the camera or about a hinge in the image plane,
-sliding across the image or towards the camera, still; 5 seeds each, alone and with a hand passing
-over the part) are scored too.
+a small part turning about a far point, sliding across the image or towards the camera, still;
+some with an exposure step half-way; 5 seeds each, alone and with a hand passing over the part)
+are scored too.
 Writes the tables into docs/articulation_video.md between ``<!-- video-benchmark -->`` markers.
 """
 
@@ -41,12 +42,17 @@ TRUTH = {"laptop01": "revolute", "cabinet01": "prismatic", "pliers01": "revolute
 #: drawn by hand: the laptop's lid down to its base, the cabinet's drawers, the pliers on the table
 OBJECT = {"laptop01": (265, 145, 445, 300), "cabinet01": (300, 170, 560, 480), "pliers01": (230, 250, 520, 420)}
 MIN_EIG = (1e-3, 3e-3, 1e-2)
-#: synthetic motions of ``part_video``: name, the joint it shows, what it is
-SYNTHETIC = [("revolute", "revolute", "turning about an axis towards the camera, 60°"),
-             ("hinge", "revolute", "a lid tilting away about a hinge in the image plane, 60° (pinhole)"),
-             ("prismatic", "prismatic", "sliding across the image, 80 px"),
-             ("depth", "prismatic", "pulled towards the camera by 0.3 of its distance (pinhole)"),
-             ("static", "static", "not moving")]
+#: synthetic motions of ``part_video``: name, its options, the joint it shows, what it is
+SYNTHETIC = [("revolute", {}, "revolute", "turning about an axis towards the camera, 60°"),
+             ("hinge", {}, "revolute", "a lid tilting away about a hinge in the image plane, 60° (pinhole)"),
+             ("prismatic", {}, "prismatic", "sliding across the image, 80 px"),
+             ("depth", {}, "prismatic", "pulled towards the camera by 0.3 of its distance (pinhole)"),
+             ("static", {}, "static", "not moving"),
+             ("swing", {}, "revolute", "a 60×40 px part turning 25° about a point 200 px away (a handle's tip)"),
+             ("depth", {"pivot": (40.0, 40.0)}, "prismatic", "pulled towards the camera, off the image centre"),
+             ("revolute", {"exposure": True}, "revolute", "turning 60°, an exposure step half-way"),
+             ("prismatic", {"exposure": True}, "prismatic", "sliding 80 px, an exposure step half-way"),
+             ("static", {"exposure": True}, "static", "not moving, an exposure step half-way")]
 
 
 def frames(path):
@@ -111,11 +117,12 @@ def main() -> None:
             print(sens[-1], flush=True)
     syn = []
     with tempfile.TemporaryDirectory() as tmp:
-        for motion, truth, what in SYNTHETIC:
+        for motion, options, truth, what in SYNTHETIC:
             right = {(hand, check): 0 for hand in (False, True) for check in (True, False)}
             for hand in (False, True):
                 for seed in range(5):
-                    imgs, fps = frames(part_video(Path(tmp) / f"{motion}{seed}.avi", motion, seed=seed, hand=hand))
+                    imgs, fps = frames(part_video(Path(tmp) / f"{motion}{seed}.avi", motion, seed=seed, hand=hand,
+                                                  **options))
                     tr = point_tracks(iter(imgs), fps)
                     for check in (True, False):
                         right[hand, check] += analyze_tracks(tr if check else unchecked(tr)).model == truth
@@ -131,7 +138,8 @@ def main() -> None:
         "| video | slip test | " + " | ".join(f"{m:g}" for m in MIN_EIG) + " |",
         "|---|---|" + "---|" * len(MIN_EIG), *sens, "",
         "Synthetic parts (320×240, 90 frames, 5 seeds each; with a hand: a textured blob that comes in "
-        "while the part moves, passes over it and goes out):", "",
+        "while the part moves, passes over it and goes out; an exposure step: every grey level × 0.75 + 10 "
+        "from half-way):", "",
         "| motion | what | joint | right | right, with a hand | without the slip test: right | with a hand |",
         "|---|---|---|---|---|---|---|", *syn,
     ])

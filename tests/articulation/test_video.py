@@ -53,6 +53,21 @@ def test_drawer_pulled_towards_the_camera_is_prismatic_along_the_line_of_sight(t
     assert abs(res.parts[0]["axis"]["direction"][2]) > math.cos(math.radians(15))
 
 
+def test_a_handle_tip_turning_about_a_far_pivot_is_revolute(tmp_path):
+    """The markers at the tip of a long handle (pliers): their paths are nearly straight (25° at
+    200 px), the joint still revolute, its axis towards the camera."""
+    res = analyze_video(part_video(tmp_path / "swing.avi", "swing"))
+    assert res.model == "revolute", res.to_dict()
+    assert res.parts[0]["axis"]["towards_camera"]
+
+
+def test_exposure_step_darkens_the_second_half_and_a_turn_stays_revolute(tmp_path):
+    v = part_video(tmp_path / "dark.avi", "revolute", exposure=True, frames=60)
+    means = [float(img.mean()) for _, img in open_sequence(v).frames()]
+    assert np.mean(means[32:]) < 0.85 * np.mean(means[:28])
+    assert analyze_video(v).model == "revolute"
+
+
 def test_video_without_motion_is_static_with_low_confidence(tmp_path):
     res = analyze_video(part_video(tmp_path / "still.avi", "static"))
     assert res.model == "static" and res.parts == [] and res.confidence <= 0.5

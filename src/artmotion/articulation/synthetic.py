@@ -123,7 +123,7 @@ def synthetic_log(kind: str, seed: int | np.random.Generator = 0) -> tuple[np.nd
 def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int, int] = (320, 240),
                amount: float | None = None, pivot: tuple[float, float] = (110.0, 120.0),
                direction: tuple[float, float] = (1.0, 0.3), seed: int = 0, fps: float = 30.0,
-               hand: bool = False):
+               hand: bool = False, exposure: bool = False):
     """Write a video (MJPG ``.avi``) of a textured part against a static textured background:
     ``revolute`` turns it about ``pivot`` (an axis towards the camera) by ``amount`` degrees
     (default 60), ``prismatic`` slides it along ``direction`` by ``amount`` px (default 80),
@@ -134,12 +134,16 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     0.3: a drawer pulled out at the viewer). The part rests for the first and last sixth of the
     frames. ``hand``: a textured blob (a hand) comes in from the image's lower edge while the part
     moves, passes over the part's middle, covering part of it, and goes out again; it is never
-    still."""
+    still. ``swing``: a small part (60x40 px at ``pivot``) turns by ``amount`` degrees (default 25)
+    about a point 200 px to its left, as the markers at the tip of a long handle (pliers): its
+    points' paths are nearly straight, its turn is what says revolute. ``exposure``: the camera's
+    automatic exposure steps once, half-way through the motion (every grey level x 0.75 + 10 from
+    then on)."""
     import cv2
 
     from artmotion.io.atomic import atomic_path
 
-    if motion not in ("revolute", "prismatic", "static", "hinge", "depth"):
+    if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing"):
         raise ValueError(f"unknown motion {motion!r}")
     rng = np.random.default_rng(seed)
     w, h = size
@@ -161,9 +165,11 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
         corners = np.array([[px, py - 30], [px + 90, py - 30], [px + 90, py + 30], [px, py + 30]], np.float32)
     if pinhole:
         cv2.fillConvexPoly(mask, corners.round().astype(np.int32), 255)
+    elif motion == "swing":
+        cv2.rectangle(mask, (int(px), int(py - 20)), (int(px + 60), int(py + 20)), 255, -1)
     else:
         cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
-    amount = {"revolute": 60.0, "hinge": 60.0, "depth": 0.3}.get(motion, 80.0) if amount is None else amount
+    amount = {"revolute": 60.0, "hinge": 60.0, "depth": 0.3, "swing": 25.0}.get(motion, 80.0) if amount is None else amount
     d = np.asarray(direction, float) / np.linalg.norm(direction)
     focal = w / (2.0 * np.tan(np.radians(30.0)))
     centre = np.array([w / 2.0, h / 2.0])
@@ -192,8 +198,8 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
                 p = cv2.warpPerspective(part, H, (w, h))
                 m = cv2.warpPerspective(mask, H, (w, h)) > 127
             else:
-                if motion == "revolute":
-                    M = cv2.getRotationMatrix2D((px, py), amount * q, 1.0)
+                if motion in ("revolute", "swing"):
+                    M = cv2.getRotationMatrix2D((px - (200.0 if motion == "swing" else 0.0), py), amount * q, 1.0)
                 else:
                     s = amount * q if motion == "prismatic" else 0.0
                     M = np.array([[1.0, 0.0, s * d[0]], [0.0, 1.0, s * d[1]]])
@@ -211,6 +217,8 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
                     shift = np.array([[1, 0, c[0] - w / 2], [0, 1, c[1] - h / 2]], np.float32)
                     skin = cv2.warpAffine(hand_tex, shift, (w, h), borderMode=cv2.BORDER_REFLECT)
                     img[g > 0] = skin[g > 0]
+            if exposure and f >= frames // 2:
+                img = cv2.convertScaleAbs(img, alpha=0.75, beta=10.0)
             out.write(img)
         out.release()
     return path

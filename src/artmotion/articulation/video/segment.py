@@ -16,7 +16,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -56,7 +56,7 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
             D, _ = cv2.estimateAffinePartial2D(xy[f - 1, ok], xy[f, ok], method=cv2.RANSAC,
                                                ransacReprojThreshold=max(1.0, 3 * sigma))
         A[f] = compose(D if D is not None else IDENTITY, A[f - 1])
-    return True, PointTracks(apply(invert(A)[:, None], xy), tracks.fps, tracks.width, tracks.height)
+    return True, replace(tracks, xy=apply(invert(A)[:, None], xy), slips=None, checks=None)
 
 
 def noise_level(tracks: PointTracks) -> float:

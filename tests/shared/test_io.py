@@ -1,3 +1,6 @@
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -134,3 +137,29 @@ def test_check_writable(tmp_path):
     with pytest.raises(InputError, match="a file is where a folder would be"):
         check_writable(tmp_path / "dangling" / "out.txt")
     check_writable(tmp_path / "f")  # an existing file is overwritten: fine
+
+
+def test_check_writable_refuses_devices_pipes_and_inputs(tmp_path):
+    """A device or pipe as an output would be replaced by the rename (as root, even /dev/null); an
+    output that is an input (or another output) would destroy it."""
+    from artmotion.io import atomic_write, check_writable
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for path in (fifo, Path(os.devnull)):
+        with pytest.raises(InputError, match="not a regular file"):
+            check_writable(path)
+        with pytest.raises(InputError, match="not a regular file"), atomic_write(path) as fh:
+            fh.write("x")
+    assert fifo.is_fifo() and Path(os.devnull).is_char_device()
+    src = tmp_path / "det.txt"
+    src.write_text("1,-1,0,0,1,1,1,-1,-1,-1\n")
+    with pytest.raises(InputError, match="is also an input"):
+        check_writable(tmp_path / "out.txt", tmp_path / "sub" / ".." / "det.txt", inputs=(None, src))
+    (tmp_path / "link.txt").symlink_to(src)
+    with pytest.raises(InputError, match="is also an input"):
+        check_writable(tmp_path / "link.txt", inputs=(src,))
+    with pytest.raises(InputError, match="two outputs"):
+        check_writable(tmp_path / "a.txt", tmp_path / "./a.txt")
+    check_writable(tmp_path / "a.txt", tmp_path / "b.txt", inputs=(src, tmp_path))  # a folder input: fine
+    assert src.read_text().startswith("1,")

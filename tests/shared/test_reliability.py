@@ -183,6 +183,7 @@ def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
     (["articulation", "fit", "{traj}", "--max-radius", "-1"], "--max-radius"),
     (["articulation", "fit", "{traj}", "--min-samples", "1000000000"], "--min-samples"),
     (["batch", "{tmp}", "--scheduler", "not a url"], "not a url"),
+    (["batch", "{tmp}", "--workers", str(4 * (os.cpu_count() or 1) + 1)], "--workers"),  # processes, not a queue
 ])
 def test_3_bad_options_are_one_line(tmp_path, args, needle):
     traj = tmp_path / "arc.txt"
@@ -212,6 +213,45 @@ def test_3_an_output_that_cannot_be_written_fails_before_any_is(tmp_path, where)
     assert not good.exists()
 
 
+def test_3_an_output_over_an_input_or_a_device_is_refused(tmp_path):
+    """``track --out`` naming its own detections (given or the sequence's det/det.txt), a pipe, or
+    the same file as ``--events``: one line, exit 2, and the input untouched."""
+    seq = inp.sequence(tmp_path / "seq")
+    det = seq / "det" / "det.txt"
+    before = det.read_bytes()
+    code, _, err = call("track", seq, "--out", det)
+    assert_one_line_error(code, err, "det.txt", "is also an input")
+    code, _, err = call("track", seq, "--det", det, "--out", tmp_path / "seq" / "det" / ".." / "det" / "det.txt")
+    assert_one_line_error(code, err, "is also an input")
+    assert det.read_bytes() == before
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    code, _, err = call("track", seq, "--out", fifo)
+    assert_one_line_error(code, err, "fifo", "not a regular file")
+    assert fifo.is_fifo()
+    code, _, err = call("track", seq, "--out", tmp_path / "r.txt", "--events", tmp_path / "r.txt")
+    assert_one_line_error(code, err, "r.txt", "two outputs")
+    assert not (tmp_path / "r.txt").exists()
+
+
+def test_3_pose_outputs_never_replace_their_inputs(tmp_path, model):
+    """``pose predict --out`` naming the model, ``pose train --model`` naming the labels."""
+    crops = tmp_path / "crops"
+    crops.mkdir()
+    cv2.imwrite(str(crops / "a.png"), np.full((48, 64, 3), 128, np.uint8))
+    m = tmp_path / "m.npz"
+    shutil.copy(model, m)
+    before = m.read_bytes()
+    code, _, err = call("pose", "predict", m, crops, "--out", m)
+    assert_one_line_error(code, err, "m.npz", "is also an input")
+    assert m.read_bytes() == before
+    labels = tmp_path / "labels.csv"
+    labels.write_text("image,a\na.png,1\n")
+    code, _, err = call("pose", "train", crops, labels, "--model", labels)
+    assert_one_line_error(code, err, "labels.csv", "is also an input")
+    assert labels.read_text() == "image,a\na.png,1\n"
+
+
 def test_3_huge_trajectory_values_are_one_line(tmp_path):
     traj = tmp_path / "huge.txt"
     traj.write_text(inp.trajectory() + "1e308 1e308\n")
@@ -234,6 +274,16 @@ def test_3_manifest_numbers_out_of_range_are_refused(tmp_path, field, value):
     folder = inp.run_folder(tmp_path / "run", run)
     code, _, err = call("index", "add", folder, "--db", tmp_path / "db.sqlite")
     assert_one_line_error(code, err, "run.json", "corrupt manifest")
+    assert not (tmp_path / "db.sqlite").exists()
+
+
+def test_3_a_deeply_nested_manifest_is_one_line(tmp_path):
+    """JSON nested beyond the parser's recursion limit is a corrupt manifest, not an internal error."""
+    folder = tmp_path / "deep"
+    folder.mkdir()
+    (folder / "run.json").write_text("[" * 100_000 + "]" * 100_000)
+    code, _, err = call("index", "add", folder, "--db", tmp_path / "db.sqlite")
+    assert_one_line_error(code, err, "run.json", "nested too deeply")
     assert not (tmp_path / "db.sqlite").exists()
 
 

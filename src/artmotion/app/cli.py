@@ -190,7 +190,7 @@ def batch_cmd(
     from artmotion.app.batch import BatchInterrupted, run_batch
     from artmotion.errors import check_range
 
-    check_range("--workers", workers, 1, 1024, integer=True)
+    check_range("--workers", workers, 1, 4 * (os.cpu_count() or 1), integer=True)  # (4 processes per core at most)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
     try:
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),

@@ -318,6 +318,8 @@ def load_run(run_dir: str | os.PathLike) -> dict:
         run = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"corrupt manifest: {exc}", path=path) from None
+    except RecursionError:
+        raise InputError("corrupt manifest: nested too deeply", path=path) from None
     problem = _manifest_problem(run)
     if problem:
         raise InputError(f"corrupt manifest: {problem}", path=path)

@@ -11,16 +11,40 @@ import glob
 import os
 import re
 import shutil
+import stat
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
 from artmotion.errors import InputError
 
 
+def _not_regular(path: Path) -> InputError | None:
+    """An error when ``path`` exists and is not a regular file (a device, a pipe, a socket): the
+    rename of an atomic write would replace it (as root, even ``/dev/null``)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None  # nothing there (or a dangling link, which the rename replaces)
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return InputError("not a regular file (a device, pipe or socket): give the name of a file to write", path=path)
+
+
+def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """``a`` and ``b`` name the same file (the same inode when both exist, else the same absolute path)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
 def _prepare(path: str | os.PathLike) -> Path:
     path = Path(path)
+    error = _not_regular(path)
+    if error is not None:
+        raise error
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -28,16 +52,23 @@ def _prepare(path: str | os.PathLike) -> Path:
     return path
 
 
-def check_writable(*paths: str | os.PathLike | None) -> None:
+def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.PathLike | None] = ()) -> None:
     """Before long work: an :class:`InputError` naming the first output ``path`` (``None``s are
-    skipped) that cannot be written — an existing folder where a file goes, or a parent that is a
-    file or not writable — without creating anything."""
-    for p in paths:
-        if p is None:
-            continue
-        path = Path(p)
+    skipped) that cannot be written — an existing folder where a file goes, a device or pipe, a
+    parent that is a file or not writable, the same file as another output or as one of the
+    command's ``inputs`` (its rename would destroy the input) — without creating anything."""
+    given = [Path(p) for p in paths if p is not None]
+    sources = [q for q in inputs if q is not None]
+    for k, path in enumerate(given):
         if path.is_dir():
             raise InputError("is a folder, not a file", path=path)
+        error = _not_regular(path)
+        if error is not None:
+            raise error
+        if any(_same_file(path, other) for other in given[:k]):
+            raise InputError("given for two outputs: one would replace the other", path=path)
+        if any(os.path.isfile(q) and _same_file(path, q) for q in sources):
+            raise InputError("is also an input: writing the output would destroy it", path=path)
         parent = path.parent
         while not os.path.lexists(parent) and parent != parent.parent:
             parent = parent.parent  # (a dangling link stops the climb: it is no folder)

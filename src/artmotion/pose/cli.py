@@ -73,9 +73,11 @@ def train_cmd(
     seed: int = typer.Option(0, "--seed"),
 ):
     """Learn one Gaussian process per angle from labelled crops."""
+    from artmotion.io import check_writable
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
+    check_writable(model, inputs=(labels, boxes))
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
     check_range("--steps", steps, 1, 1_000_000, integer=True)
@@ -104,9 +106,11 @@ def predict_cmd(
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
 ):
     """Predict every angle (mean and standard deviation, degrees) of each crop."""
+    from artmotion.io import check_writable
     from artmotion.pose.data import list_images, read_images, write_predictions
     from artmotion.pose.model import PoseRegressor, is_foreign
 
+    check_writable(out, inputs=(model, boxes))
     reg = PoseRegressor.load(model)
     paths = list_images(images)
     views = _views(boxes, paths)

@@ -60,6 +60,7 @@ def track_command(
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
+    import os
     import sys
 
     from artmotion.errors import InputError
@@ -68,7 +69,10 @@ def track_command(
 
     if video and not video.lower().endswith(".mp4"):
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
-    check_writable(out, events, video)  # before the work, so that no output is written when one cannot be
+    # before the work, so that no output is written when one cannot be (nor over an input: the
+    # detections, given or the sequence's own)
+    default_det = os.path.join(source, "det", "det.txt") if os.path.isdir(source) else None
+    check_writable(out, events, video, inputs=(source, det or default_det))
     if progress is None:
         progress = sys.stderr.isatty()
     res = track(source, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,

@@ -49,7 +49,7 @@ def train(
     check_seed(seed)
     from artmotion.io import check_writable
 
-    check_writable(model)  # before the training
+    check_writable(model, inputs=(tools_csv,))  # before the training
     from artmotion.tracking.instruments.detector import ToolDetector, need_torch
 
     need_torch()
@@ -83,8 +83,10 @@ def track(
     progress: bool = typer.Option(None, "--progress/--no-progress", help="Progress bar (default: on a terminal)."),
 ):
     """Find and track the instruments: one row per instrument per frame, with persistent identities."""
+    from artmotion.io import check_writable
     from artmotion.tracking.instruments.annotations import write_predictions
 
+    check_writable(out, inputs=(model,))
     if threshold is not None:
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     from artmotion.tracking.instruments.detector import ToolDetector

@@ -161,6 +161,20 @@ def test_eval_bad_input(tmp_path, run_cli):
     code, _, err = run_cli("grounding", "eval", d)
     _one_line_error(code, err, "index.csv:1", "lacks columns")
 
+    # labels are checked before any example's features (which take minutes on a whole dataset)
+    for name, rows, needle in (("purple", [_row(0), _row(1, color="purple")], "index.csv:3"),
+                               ("blob", [_row(0, shape="blob")], "index.csv:2"),
+                               ("twice", [_row(0), _row(0)], "appears twice")):
+        d = tmp_path / name
+        _write_index(d, rows)  # (no images nor speech: they are never read)
+        code, _, err = run_cli("grounding", "eval", d)
+        _one_line_error(code, err, needle)
+    d = tmp_path / "nan"
+    d.mkdir()
+    (d / "index.csv").write_text(",".join(ds.INDEX_COLUMNS[:8]) + "\n" + ",".join(_row(0).values()) + ",nan\n")
+    code, _, err = run_cli("grounding", "eval", d)
+    _one_line_error(code, err, "index.csv:2", "rotation")
+
     d = tmp_path / "toofew"
     for i in range(3):
         _good_files(d, i)

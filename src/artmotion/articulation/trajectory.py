@@ -25,7 +25,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.geometry.rotations import axis_angle_to_matrix
-from artmotion.io.files import read_text
+from artmotion.io.files import number, read_text
 
 __all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
 
@@ -35,6 +35,8 @@ MAX_COORD = 1e12
 MAX_TIME = 1e15
 _TIME_NAMES = {"t", "time", "timestamp", "stamp", "sec", "secs", "seconds"}
 _SPLIT = re.compile(r"[,\s;]+")
+#: a separator at the start of a row, or two commas or semicolons with nothing but spaces between
+_EMPTY_FIELD = re.compile(r"^[,;]|[,;]\s*[,;]")
 
 
 @dataclass
@@ -62,9 +64,11 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         s = raw.strip()
         if not s or s.startswith("#"):
             continue
+        if _EMPTY_FIELD.search(s):  # (the rest would shift into its place)
+            raise InputError(f"empty field in row: {s[:60]!r}", path=path, line=no)
         tok = [t for t in _SPLIT.split(s) if t]
         try:
-            vals = [float(t) for t in tok]
+            vals = [number(t) for t in tok]
         except ValueError:
             if not rows and header is None:
                 header = [t.lower() for t in tok]

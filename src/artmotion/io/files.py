@@ -8,7 +8,15 @@ from pathlib import Path
 
 from artmotion.errors import InputError
 
-__all__ = ["existing_file", "read_head", "read_text"]
+__all__ = ["existing_file", "number", "read_head", "read_text"]
+
+
+def number(text: str) -> float:
+    """``float(text)`` for a field of a data file, without Python's literal extras: ``1_0`` is not
+    ten (a ``ValueError``, as for any other text that is not a number)."""
+    if "_" in text:
+        raise ValueError(f"not a number: {text!r}")
+    return float(text)
 
 
 def existing_file(path: str | os.PathLike, missing: str = "no such file") -> Path:

@@ -10,7 +10,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
-from artmotion.io.files import read_text
+from artmotion.io.files import number, read_text
 
 MOT_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "X", "Y", "Z")
 #: the largest frame number of a sequence (also the largest ``seqLength`` of a seqinfo.ini)
@@ -48,7 +48,7 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
         if not 6 <= len(parts) <= 10:
             raise InputError(f"expected 6 to 10 values, found {len(parts)}", path=path, line=lineno)
         try:
-            values = [float(p) for p in parts]
+            values = [number(p) for p in parts]
         except ValueError:
             raise InputError(f"non-numeric value in {line!r}", path=path, line=lineno) from None
         if not all(math.isfinite(v) for v in values):

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from artmotion.errors import InputError, check_range
-from artmotion.io.files import read_text
+from artmotion.io.files import number, read_text
 
 __all__ = ["MAX_ANGLE", "cell_number", "read_csv"]
 
@@ -60,7 +60,7 @@ def read_csv(path: str | os.PathLike, need: Sequence[str] = (), what: str = "CSV
 def cell_number(value: str, column: str, path, line: int, lo: float, hi: float) -> float:
     """The text ``value`` of column ``column`` as a finite number in ``[lo, hi]``."""
     try:
-        v = float(value)
+        v = number(value)
     except ValueError:
         raise InputError(f"{column}: not a number: {value[:40]!r}", path=path, line=line) from None
     return check_range(column, v, lo, hi, path=path, line=line)

@@ -21,7 +21,7 @@ import numpy as np
 from artmotion.errors import InputError, check_seed
 from artmotion.io import atomic_dir, atomic_path, atomic_write
 from artmotion.io.media import write_image
-from artmotion.io.table import read_csv
+from artmotion.io.table import cell_number, read_csv
 
 COLORS = ("blue", "green", "red", "yellow")
 SHAPES = ("circle", "halfcircle", "rectangle", "rhombus", "square", "triangle", "trapezium", "hexagon")
@@ -47,6 +47,10 @@ INDEX_COLUMNS = (
     "id", "image", "speech", "speech_color", "speech_shape", "color", "shape",
     "rotation", "scale", "x", "y", "speed", "speed_color", "speed_shape",
 )
+
+
+#: the index's numeric columns (where an example's shape is drawn, how it moves)
+NUMBERS = ("rotation", "scale", "x", "y", "speed", "speed_color", "speed_shape")
 
 
 def counts(table: dict | None = None) -> list[tuple[str, str, int]]:
@@ -211,10 +215,21 @@ def read_index(dataset: str | os.PathLike) -> list[dict]:
     need = ("id", "image", "speech", "speech_color", "speech_shape", "color", "shape")
     header, table = read_csv(index, need=need, what="grounding index CSV")
     rows = []
+    seen: set[str] = set()
     for lineno, values in table:
         row: dict[str, str | int] = dict(zip(header, values))
         if any(not row[c] for c in need):
             raise InputError("empty field", path=index, line=lineno)
+        # labels checked here, before the features of every example are computed
+        for column, known in (("color", COLORS), ("shape", SHAPES)):
+            if row[column] not in known:
+                raise InputError(f"{column} {row[column]!r} is none of {', '.join(known)}", path=index, line=lineno)
+        if row["id"] in seen:
+            raise InputError(f"id {row['id']!r} appears twice", path=index, line=lineno)
+        seen.add(str(row["id"]))
+        for column in NUMBERS:
+            if row.get(column):
+                cell_number(str(row[column]), column, index, lineno, -1e6, 1e6)
         row["_line"] = lineno
         rows.append(row)
     if not rows:

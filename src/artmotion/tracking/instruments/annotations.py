@@ -30,7 +30,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range
 from artmotion.io.atomic import atomic_write
-from artmotion.io.files import read_text
+from artmotion.io.files import number, read_text
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 
 __all__ = ["TOOLS_COLUMNS", "PREDICTION_COLUMNS", "read_tools_csv", "read_predictions", "write_predictions", "wrap_angle"]
@@ -86,7 +86,7 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
         values: dict[str, float] = {}
         for name, field in zip(names, fields):
             try:
-                v = float(field)
+                v = number(field.strip())
             except ValueError:
                 raise InputError(f"{name} is not a number: {field.strip()!r}", path=path, line=lineno) from None
             if not math.isfinite(v):

@@ -383,6 +383,16 @@ def test_4_empty_ground_truth_is_no_ground_truth(tmp_path):
     assert run_pipeline(seq, tmp_path / "run", video=False).metrics is None
 
 
+def test_4_ground_truth_of_a_run_is_checked_before_the_tracking(tmp_path):
+    """An id twice in one frame of the sequence's gt/gt.txt: the error names that file."""
+    seq = inp.sequence(tmp_path / "seq")
+    rows = inp.gt_rows()
+    (seq / "gt" / "gt.txt").write_text("\n".join(rows + rows[:1]) + "\n")
+    code, _, err = call("run", seq, "--out", tmp_path / "run")
+    assert_one_line_error(code, err, "gt.txt", "appears more than once")
+    assert not (tmp_path / "run").exists()
+
+
 # -- 5. not atomic ---------------------------------------------------------------------------------
 
 

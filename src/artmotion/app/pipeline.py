@@ -187,6 +187,10 @@ def run_pipeline(
 
         tools = ToolDetector.load(tool_model)
     gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
+    if gt is not None:
+        from artmotion.tracking.metrics import check_ids
+
+        check_ids(gt, "ground truth", seq.gt_path)  # before the tracking, naming the file
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete

@@ -33,7 +33,8 @@ from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 
-__all__ = ["apply_rules", "evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
+__all__ = ["apply_rules", "check_ids", "evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS",
+           "METRIC_ORDER"]
 
 EPS = np.finfo(float).eps
 #: The HOTA localisation thresholds (the same floats TrackEval uses).
@@ -136,7 +137,9 @@ def _load(x, what: str) -> tuple[np.ndarray, str | None]:
     return arr, None
 
 
-def _check_ids(arr: np.ndarray, what: str, path: str | None) -> None:
+def check_ids(arr: np.ndarray, what: str, path: str | os.PathLike | None) -> None:
+    """Integer ids, each at most once per frame, in MOT rows ``arr``; else an :class:`InputError`
+    naming ``what`` and its ``path``."""
     ids = arr[:, 1]
     if (ids != np.round(ids)).any():
         raise InputError(f"{what}: track ids must be integers", path=path)
@@ -320,8 +323,8 @@ def _load_pair(gt, res, rules: str, k: int | None = None) -> tuple[np.ndarray, n
     suffix = f" #{k + 1}" if k is not None else ""
     gt_arr, gt_path = _load(gt, "ground truth" + suffix)
     res_arr, res_path = _load(res, "results" + suffix)
-    _check_ids(gt_arr, "ground truth", gt_path)
-    _check_ids(res_arr, "results", res_path)
+    check_ids(gt_arr, "ground truth", gt_path)
+    check_ids(res_arr, "results", res_path)
     if rules == "mot17" and len(gt_arr):
         bad = ~np.isin(gt_arr[:, 7], list(MOT17_CLASSES))
         if bad.all() and np.all(gt_arr[:, 7] == -1):

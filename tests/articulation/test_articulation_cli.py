@@ -137,6 +137,11 @@ def test_slam_simulate_named_world(run_cli):
 def test_slam_bad_options(run_cli, tmp_path):
     code, _, err = run_cli("slam", "simulate", "--landmarks", "1", "--prismatic", "1", "--revolute", "1")
     assert code == 2 and err.startswith("artmotion: error:")
+    code, _, err = run_cli("slam", "simulate", "--landmarks", "1")  # the defaults' 1 + 1 do not fit: say so
+    assert code == 2 and "1 each unless given" in err
+    for args in (("--prismatic", "5"), ("--world", "corridor", "--landmarks", "30")):  # not silently ignored
+        code, _, err = run_cli("slam", "simulate", *args)
+        assert code == 2 and err.count("\n") == 1 and "--landmarks" in err
     code, _, err = run_cli("slam", "simulate", "--plot", tmp_path / "x.jpg", "--runs", "1", "--steps", "5")
     assert code == 2
     for args, word in ((("--world", "moon"), "--world"), (("--backends", "ekf,nope"), "--backends"),

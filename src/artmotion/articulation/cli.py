@@ -146,15 +146,17 @@ MAX_LANDMARKS = 1000
 
 @slam_app.command("simulate")
 def simulate(
-    world: str = typer.Option("table4.2", "--world",
-                              help="Named world: table4.2, corridor, warehouse or moving-only."),
+    world: Optional[str] = typer.Option(None, "--world",
+                                        help="Named world: table4.2 (default), corridor, warehouse or moving-only."),
     backends: str = typer.Option("ekf,ekf_gated,articulated", "--backends",
                                  help="Comma-separated back ends: ekf, ekf_gated, articulated, "
                                       "articulated_delayed, graph (graph needs the slam extra)."),
     landmarks: Optional[int] = typer.Option(None, "--landmarks",
                                             help="Instead of --world: this many landmarks around the path."),
-    prismatic: int = typer.Option(1, "--prismatic", help="With --landmarks: how many slide back and forth."),
-    revolute: int = typer.Option(1, "--revolute", help="With --landmarks: how many turn on a circle."),
+    prismatic: Optional[int] = typer.Option(None, "--prismatic",
+                                            help="With --landmarks: how many slide back and forth (default 1)."),
+    revolute: Optional[int] = typer.Option(None, "--revolute",
+                                           help="With --landmarks: how many turn on a circle (default 1)."),
     steps: Optional[int] = typer.Option(None, "--steps", help="Time steps per run (0.1 s each); default: the world's."),
     runs: int = typer.Option(20, "--runs", help="Monte Carlo runs."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
@@ -165,6 +167,11 @@ def simulate(
     from artmotion.articulation.slam.evaluate import BACKENDS, monte_carlo, plot_run
     from artmotion.articulation.slam.world import WORLDS
 
+    if landmarks is None and (prismatic is not None or revolute is not None):
+        raise InputError("--prismatic and --revolute count landmarks of --landmarks: give --landmarks too")
+    if landmarks is not None and world is not None:
+        raise InputError("give either --world or --landmarks (a ring of landmarks instead of a named world)")
+    world = world or "table4.2"
     if world not in WORLDS:
         raise InputError(f"--world must be one of {', '.join(WORLDS)}, got {world!r}")
     names = list(dict.fromkeys(b.strip() for b in backends.split(",") if b.strip()))  # each once, in order
@@ -174,8 +181,11 @@ def simulate(
     counts = None
     if landmarks is not None:
         check_range("--landmarks", landmarks, 1, MAX_LANDMARKS, integer=True)
-        check_range("--prismatic", prismatic, 0, landmarks, integer=True)
-        check_range("--revolute", revolute, 0, landmarks - prismatic, integer=True)
+        prismatic = check_range("--prismatic", 1 if prismatic is None else prismatic, 0, MAX_LANDMARKS, integer=True)
+        revolute = check_range("--revolute", 1 if revolute is None else revolute, 0, MAX_LANDMARKS, integer=True)
+        if prismatic + revolute > landmarks:
+            raise InputError(f"--prismatic ({prismatic}) and --revolute ({revolute}; 1 each unless given) "
+                             f"add up to more than --landmarks ({landmarks})")
         counts = (landmarks, prismatic, revolute)
     if steps is not None:
         check_range("--steps", steps, 2, 100_000, integer=True)

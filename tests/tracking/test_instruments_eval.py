@@ -26,7 +26,7 @@ def _write(tmp_path, text, name="f.csv"):
 
 def test_predictions_round_trip(tmp_path):
     pred = {
-        12: np.array([[3, 10.04, 20.06, 30.123, 1.23456, 0.98765], [0, -5.0, 7.5, 0.001, -0.5, -2.0]]),
+        12: np.array([[3, 10.04, 20.06, 30.123, 1.23456, 0.98765], [0, -5.0, 7.5, 0.001, -0.5, 0.25]]),
         3: np.array([[7, 100.0, 200.0, 50.0, 7.0, 1.0]]),
         5: np.zeros((0, 6)),
     }
@@ -35,7 +35,7 @@ def test_predictions_round_trip(tmp_path):
     lines = path.read_text().splitlines()
     assert lines[0] == PRED_HEADER
     assert lines[1] == f"3,7,100.0,200.0,50.00,{7.0 - 2 * math.pi:.4f},1.0000"
-    assert lines[2] == f"12,0,-5.0,7.5,0.001,{2 * math.pi - 0.5:.4f},-2.0000"       # tracks ascending
+    assert lines[2] == f"12,0,-5.0,7.5,0.001,{2 * math.pi - 0.5:.4f},0.2500"       # tracks ascending
     assert lines[3] == "12,3,10.0,20.1,30.12,1.2346,0.9877"
     assert len(lines) == 4
     assert [p.name for p in path.parent.iterdir()] == ["pred.csv"]                  # no temporary left
@@ -45,7 +45,7 @@ def test_predictions_round_trip(tmp_path):
     assert back[12].shape == (2, 6) and back[3].shape == (1, 6)
     np.testing.assert_allclose(back[12][:, 0], [0, 3])
     np.testing.assert_allclose(back[12][1], [3, 10.0, 20.1, 30.12, 1.2346, 0.9877])
-    np.testing.assert_allclose(back[12][0], [0, -5.0, 7.5, 0.001, 2 * math.pi - 0.5, -2.0], atol=1e-4)
+    np.testing.assert_allclose(back[12][0], [0, -5.0, 7.5, 0.001, 2 * math.pi - 0.5, 0.25], atol=1e-4)
     np.testing.assert_allclose(back[3][0, 4], 7.0 - 2 * math.pi, atol=1e-4)
 
     write_predictions(path, back)                                                   # stable once rounded
@@ -136,6 +136,8 @@ PRED_CASES = [
     (GOOD_PRED + "-2,1,10,20,5,1,1\n", 3, "frame must be a whole number"),
     (GOOD_PRED + "2,1,10,20,0,1,1\n", 3, "scale must be"),
     (GOOD_PRED + "2,1,1e7,20,1,1,1\n", 3, "x out of range"),
+    (GOOD_PRED + "2,1,10,20,5,1,1.5\n", 3, "score must be a number in [0, 1]"),
+    (GOOD_PRED + "2,1,10,20,5,1,-3\n", 3, "score must be a number in [0, 1]"),
     (GOOD_PRED + "1,1,10,20,5,1,0.9\n1,0,10,20,5,1,0.9\n", 4, "duplicate track 0 in frame 1 (first on line 2)"),
 ]
 
@@ -149,14 +151,20 @@ def test_read_predictions_bad_input(tmp_path, text, line, message):
     assert message in info.value.reason
 
 
-@pytest.mark.parametrize("reader, header, message", [(read_tools_csv, TOOLS_HEADER, "no annotations"),
-                                                     (read_predictions, PRED_HEADER, "no predictions")])
-def test_no_rows(tmp_path, reader, header, message):
-    for text in ("", "\n\n", header + "\n", header + "\n\n  \n"):
-        p = _write(tmp_path, text)
-        with pytest.raises(InputError, match=message) as info:
-            reader(p)
-        assert info.value.path == str(p)
+def test_no_rows(tmp_path):
+    """Annotations without rows are an error; predictions without rows (what 'tool track' writes
+    when it finds nothing) are an answer; a file without a header is neither."""
+    for text in ("", "\n\n"):
+        for reader in (read_tools_csv, read_predictions):
+            p = _write(tmp_path, text)
+            with pytest.raises(InputError, match="no header") as info:
+                reader(p)
+            assert info.value.path == str(p)
+    for text in (TOOLS_HEADER + "\n", TOOLS_HEADER + "\n\n  \n"):
+        with pytest.raises(InputError, match="no annotations"):
+            read_tools_csv(_write(tmp_path, text))
+    for text in (PRED_HEADER + "\n", PRED_HEADER + "\n\n  \n"):
+        assert read_predictions(_write(tmp_path, text)) == {}
 
 
 def test_missing_file(tmp_path):

@@ -102,7 +102,7 @@ def test_train_track_eval_commands(lap_subset, run_cli, tmp_path):
     pred = tmp_path / "pred.csv"
     code, out, err = run_cli("tool", "track", d / "frames", "--model", model, "--out", pred, "--threshold", "0.05")
     assert code == 0, err
-    p = read_predictions(pred) if pred.stat().st_size > len("frame,track,x,y,scale,angle,score\n") else {}
+    p = read_predictions(pred)  # (no rows when nothing was found: an answer too)
     assert set(p) <= set(read_tools_csv(root / "tools.csv"))  # frames numbered by their file names
     assert "24 frames" in out
     code, out, err = run_cli("tool", "eval", root / "tools.csv", root / "tools.csv")
@@ -117,6 +117,11 @@ def test_train_track_eval_commands(lap_subset, run_cli, tmp_path):
     res = json.loads(out)
     assert code == 0 and res["precision"] == 1.0 and res["median_angle_error_deg"] < 0.01 and res["fps"] == 12.0
     assert res["matched"] == sum(len(h) for h in perfect.values()) and res["recall"] == pytest.approx(res["matched"] / res["gt"])
+    # predictions of nothing found (what 'tool track' writes then) score, with recall 0
+    write_predictions(tmp_path / "none.csv", {})
+    code, out, err = run_cli("tool", "eval", root / "tools.csv", tmp_path / "none.csv", "--json")
+    assert code == 0, err
+    assert json.loads(out)["recall"] == 0.0
     # the whole pipeline with the tool model: tracks, sentences, report, index
     code, out, err = run_cli("run", d / "frames", "--tool-model", model, "--out", tmp_path / "run",
                              "--index", tmp_path / "index.sqlite")

@@ -68,8 +68,9 @@ def _header(fields: list[str], columns: tuple[str, ...], path: Path, lineno: int
     return names
 
 
-def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, nothing: str) -> _Rows:
-    """The checked rows of a CSV file with the header ``columns``: frame -> ``ident`` -> values."""
+def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, nothing: str | None) -> _Rows:
+    """The checked rows of a CSV file with the header ``columns``: frame -> ``ident`` -> values
+    (``nothing``: the error when it has no rows; ``None``: none is fine, a header is needed)."""
     text = read_text(path, what)
     names: list[str] | None = None
     rows: _Rows = {}
@@ -101,12 +102,16 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
         if not 0 < values["scale"] <= MAX_COORD:
             raise InputError(f"scale must be a number in (0, {MAX_COORD:g}] px, got {values['scale']:g}",
                              path=path, line=lineno)
+        if "score" in values:
+            check_range("score", values["score"], 0.0, 1.0, path=path, line=lineno)
         if (frame, key) in first_line:
             raise InputError(f"duplicate {ident} {key} in frame {frame} (first on line {first_line[frame, key]})",
                              path=path, line=lineno)
         first_line[frame, key] = lineno
         rows.setdefault(frame, {})[key] = values
-    if not rows:
+    if names is None:
+        raise InputError(f"no header (expected {','.join(columns)})", path=path)
+    if not rows and nothing is not None:
         raise InputError(nothing, path=path)
     return rows
 
@@ -131,7 +136,8 @@ def read_predictions(path: str | os.PathLike) -> dict[int, np.ndarray]:
     wrapped to ``[0, 2*pi)``), frames ascending, the rows of a frame by increasing track.
     """
     path = Path(path)
-    rows = _read_rows(path, PREDICTION_COLUMNS, "track", "an instrument predictions file", "no predictions")
+    # (no rows is an answer: 'tool track' found no instrument)
+    rows = _read_rows(path, PREDICTION_COLUMNS, "track", "an instrument predictions file", None)
     return {frame: np.array([[track, v["x"], v["y"], v["scale"], wrap_angle(v["angle"]), v["score"]]
                              for track, v in sorted(rows[frame].items())], dtype=float).reshape(-1, 6)
             for frame in sorted(rows)}
@@ -168,6 +174,8 @@ def _check_predictions(path: Path, pred: dict[int, np.ndarray]) -> list[tuple[in
             raise InputError(f"frame {frame}: coordinates must lie in [-{MAX_COORD:g}, {MAX_COORD:g}] px", path=path)
         if np.any((arr[:, 3] <= 0) | (arr[:, 3] > MAX_COORD)):
             raise InputError(f"frame {frame}: scale must be a number in (0, {MAX_COORD:g}] px", path=path)
+        if np.any((arr[:, 5] < 0) | (arr[:, 5] > 1)):
+            raise InputError(f"frame {frame}: score must be a number in [0, 1]", path=path)
         out.append((frame, arr[np.argsort(tracks, kind="stable")]))
     return sorted(out, key=lambda item: item[0])
 
@@ -178,9 +186,10 @@ def write_predictions(path: str | os.PathLike, pred: dict[int, np.ndarray]) -> N
     decimal, scale 2, angle (wrapped to ``[0, 2*pi)``) 4 and score 4.
 
     The rows are checked first, as :func:`read_predictions` would check them (whole tracks
-    ``>= 0``, unique in their frame, finite values, positive scale, coordinates within ``+-1e6``).
-    Frames without rows write nothing; a file of no rows has only the header (and reading it back
-    is an error: "no predictions").
+    ``>= 0``, unique in their frame, finite values, positive scale, coordinates within ``+-1e6``,
+    scores in ``[0, 1]``).
+    Frames without rows write nothing; a file of no rows has only the header (reading it back
+    gives no predictions: nothing was found).
     """
     path = Path(path)
     frames = _check_predictions(path, pred)

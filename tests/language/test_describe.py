@@ -185,10 +185,17 @@ def test_cli_describe_bad_input(tmp_path, run_cli):
     ev.write_text('{"type": "enter", "frame": 3}\n')
     code, out, err = run_cli("describe", res, "--events", ev)
     assert code == 2 and "ev.jsonl:1" in err
+    for line, needle in (('{"type": "enter", "frame": 3, "tracks": [99], "side": "left"}', "track 99"),
+                         ('{"type": "enter", "frame": 100000, "tracks": [1], "side": "left"}', "after the results end")):
+        ev.write_text(line + "\n")  # (events of other results: not a person 99 entering)
+        code, out, err = run_cli("describe", res, "--events", ev)
+        assert code == 2 and "ev.jsonl" in err and needle in err and err.count("\n") == 1
     pose = tmp_path / "PRED.csv"
     pose.write_text("image,roll,roll_std\na.png,1,0\n")
     code, out, err = run_cli("describe", res, "--pose", pose)
     assert code == 2 and "PRED.csv" in err and "open" in err
+    code, out, err = run_cli("describe", res, "--pose-track", "99")
+    assert code == 2 and "--pose-track 99" in err
     code, out, err = run_cli("describe", res, "--size", "640by480")
     assert code == 2 and "--size" in err
     code, out, err = run_cli("describe", res, "--class", "3=")

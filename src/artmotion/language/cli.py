@@ -65,6 +65,17 @@ def describe_cmd(
         pose_seq = (frames, angles)
     if not len(rows) and pose_seq is None and not evs:
         raise InputError("no tracks to describe", path=results)
+    if len(rows):  # the events and the posed track belong to these results (as a run writes them)
+        ids, last = set(rows[:, 1].astype(int).tolist()), int(rows[:, 0].max())
+        for n, ev in enumerate(evs or [], start=1):
+            unknown = [t for t in ev.get("tracks", []) if t not in ids]
+            if unknown:
+                raise InputError(f"event {n} names track {unknown[0]}, which is not in {results}", path=events)
+            if ev["frame"] > last + 1:
+                raise InputError(f"event {n} is at frame {ev['frame']}, after the results end (frame {last})",
+                                 path=events)
+        if pose_track is not None and pose_track not in ids:
+            raise InputError(f"--pose-track {pose_track}: no such track in the results", path=results)
     triplets = describe(
         rows, evs, pose=pose_seq, classes=parse_classes(cls), pose_subject=pose_subject,
         pose_track=pose_track, open_above=open_above, close_below=close_below,

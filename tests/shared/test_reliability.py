@@ -184,6 +184,7 @@ def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
     (["articulation", "fit", "{traj}", "--min-samples", "1000000000"], "--min-samples"),
     (["batch", "{tmp}", "--scheduler", "not a url"], "not a url"),
     (["batch", "{tmp}", "--workers", str(4 * (os.cpu_count() or 1) + 1)], "--workers"),  # processes, not a queue
+    (["batch", "{tmp}", "--out", "{traj}"], "is not a folder"),  # one line up front, not one per item
 ])
 def test_3_bad_options_are_one_line(tmp_path, args, needle):
     traj = tmp_path / "arc.txt"

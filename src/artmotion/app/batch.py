@@ -240,8 +240,10 @@ def run_batch(
     if scheduler:
         _check_scheduler(scheduler)
     t0 = time.perf_counter()
-    items = find_items(root)
     out = Path(out) if out is not None else Path(root) / "artmotion-runs"
+    if os.path.lexists(out) and not out.is_dir():  # one error now, not one per item later
+        raise InputError("is not a folder: the batch writes a run folder per item in it", path=out)
+    items = find_items(root)
     report = BatchReport()
     todo: list[tuple[str, str]] = []
     for item_path, item_out in zip(items, item_dirs(items, out)):

@@ -125,6 +125,17 @@ def test_1_seqlength_is_compared_with_the_frames_of_a_video(tmp_path, container,
     assert not (tmp_path / "r.txt").exists()
 
 
+def test_1_seqinfo_image_size_is_compared_with_the_frames(tmp_path):
+    """imWidth/imHeight that are not the frames' size (the ground truth's pixels would not be the
+    frames'): one line naming the first frame."""
+    seq = inp.sequence(tmp_path / "seq")
+    ini = seq / "seqinfo.ini"
+    ini.write_text(ini.read_text().replace("imWidth=96", "imWidth=100"))
+    code, _, err = call("track", seq, "--out", tmp_path / "r.txt")
+    assert_one_line_error(code, err, "100x72", "96x72")
+    assert not (tmp_path / "r.txt").exists()
+
+
 # -- 2. anything is a video ------------------------------------------------------------------------
 
 

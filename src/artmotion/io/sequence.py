@@ -249,7 +249,16 @@ def _read_seqinfo(ini: Path) -> dict:
 
 
 #: plausible ranges of the numbers of seqinfo.ini
-_RANGES = {"framerate": (MIN_FPS, MAX_FPS), "seqlength": (1, MAX_FRAME)}
+_RANGES = {"framerate": (MIN_FPS, MAX_FPS), "seqlength": (1, MAX_FRAME), "imwidth": (1, 100_000),
+           "imheight": (1, 100_000)}
+
+
+def _check_size(info: dict, ini: Path, w: int, h: int, frames: Path) -> None:
+    """seqinfo.ini's ``imWidth`` and ``imHeight``, where given, are the frames' size (the ground
+    truth's boxes are in those pixels)."""
+    iw, ih = _num(info, "imwidth", ini, int), _num(info, "imheight", ini, int)
+    if (iw is not None and iw != w) or (ih is not None and ih != h):
+        raise InputError(f"seqinfo.ini says {iw or w}x{ih or h} pixels but the frames are {w}x{h}", path=frames)
 
 
 def _num(info: dict, key: str, ini: Path, kind=float):
@@ -296,6 +305,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
             raise InputError(f"seqinfo.ini says {length} frames but {img_dir.name}/ has {len(images)}",
                              path=img_dir)
         w, h = _image_size(images[0])
+        _check_size(info, ini, w, h, images[0])
         seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt)
         seq.fps_known = known
         return seq
@@ -305,6 +315,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
     if len(videos) > 1:
         raise InputError(f"several video files in the folder ({', '.join(v.name for v in videos)})", path=folder)
     vfps, w, h, count = _probe_video(videos[0])
+    _check_size(info, ini, w, h, videos[0])
     length = _num(info, "seqlength", ini, int)
     exact = videos[0].suffix.lower() in _EXACT_COUNT
     if length is not None and exact and length != count:

@@ -58,6 +58,9 @@ def test_box_views_say_where_the_crop_was_in_the_frame(tmp_path):
                  "000002.jpg,1,2,3,4,640,480\n000001.jpg,0,0,10,10,640,480\n")
     with pytest.raises(InputError, match="boxes.csv:4: a second box for image"):
         read_views(f, paths)
+    f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n000002.jpg,9999,2,3,4,640,480\n")
+    with pytest.raises(InputError, match="boxes.csv:3: the box .* lies outside its 640x480 frame"):
+        read_views(f, paths)
 
 
 @pytest.fixture(scope="module")

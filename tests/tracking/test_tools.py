@@ -185,6 +185,18 @@ def test_events_from_tracks():
                                                                           ("exit", 7, [2], "left")]
 
 
+def test_train_refuses_heads_outside_their_frame(tmp_path, run_cli):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for n in (1, 2):
+        cv2.imwrite(str(frames / f"{n:06d}.png"), np.full((48, 64, 3), 100, np.uint8))
+    csv = tmp_path / "tools.csv"
+    csv.write_text("frame,tool,y,x,scale,angle\n1,0,10,20,5,0\n2,0,5,999,5,0\n")
+    code, out, err = run_cli("tool", "train", frames, csv, "--model", tmp_path / "m.npz", "--epochs", "1")
+    assert code == 2 and "tools.csv" in err and "frame 2" in err and "64x48" in err and err.count("\n") == 1
+    assert not (tmp_path / "m.npz").exists()
+
+
 def test_loading_a_damaged_model(tmp_path):
     p = tmp_path / "m.pt"
     import torch

@@ -115,6 +115,9 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
             raise InputError(f"a second box for image {row[0]!r}", path=path, line=lineno)
         x, y = (cell_number(c, n, path, lineno, -1e6, 1e6) for n, c in zip(("x", "y"), row[1:3]))
         w, h, fw, fh = (cell_number(c, n, path, lineno, 1e-3, 1e6) for n, c in zip(BOX_COLUMNS[3:], row[3:7]))
+        if x >= fw or y >= fh or x + w <= 0 or y + h <= 0:  # a crop is cut from inside its frame
+            raise InputError(f"the box ({x:g}, {y:g}, {w:g}, {h:g}) lies outside its {fw:g}x{fh:g} frame",
+                             path=path, line=lineno)
         boxes[stem], sizes[stem] = (x, y, w, h), (fw, fh)
     missing = [p.name for p in images if p.stem not in boxes]
     if missing:

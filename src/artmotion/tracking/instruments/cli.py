@@ -63,6 +63,14 @@ def train(
     if not used:
         raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
     imgs = [read_image(by_number[n]) for n in used]
+    for n, img in zip(used, imgs):  # a head is where the tool is seen: inside its frame
+        h, w = img.shape[:2]
+        out = [(x, y) for x, y in heads[n][:, :2] if not (0 <= x < w and 0 <= y < h)]
+        if out:
+            raise InputError(f"frame {n}: a head at ({out[0][0]:g}, {out[0][1]:g}) lies outside the {w}x{h} frame",
+                             path=tools_csv)
+    if len(used) < len(heads):
+        typer.echo(f"note: {len(heads) - len(used)} annotated frame(s) have no image in {frames} and are left out")
 
     def progress(epoch: int, total: int, loss: float) -> None:
         if sys.stderr.isatty():

@@ -60,22 +60,21 @@ def track_command(
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
-    import os
     import sys
 
     from artmotion.errors import InputError
     from artmotion.io import check_writable, write_events, write_mot
-    from artmotion.tracking import DEFAULT_EXPERTS, track
+    from artmotion.tracking import DEFAULT_EXPERTS, open_sequence, track
 
     if video and not video.lower().endswith(".mp4"):
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
+    seq = open_sequence(source)  # (opened once: track() takes it as it is)
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
-    default_det = os.path.join(source, "det", "det.txt") if os.path.isdir(source) else None
-    check_writable(out, events, video, inputs=(source, det or default_det))
+    check_writable(out, events, video, inputs=(source, det or seq.det_path))
     if progress is None:
         progress = sys.stderr.isatty()
-    res = track(source, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,
+    res = track(seq, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,
                 fps=fps, detector=detector, detect_every=detect_every)
     if out:
         write_mot(out, res.tracks)

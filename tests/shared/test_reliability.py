@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 from _inputs import assert_one_line_error, call, leftovers
 
+from artmotion.errors import InputError
+
 SRC = Path(__file__).resolve().parents[2] / "src"
 
 
@@ -262,6 +264,48 @@ def test_3_pose_outputs_never_replace_their_inputs(tmp_path, model):
     code, _, err = call("pose", "train", crops, labels, "--model", labels)
     assert_one_line_error(code, err, "labels.csv", "is also an input")
     assert labels.read_text() == "image,a\na.png,1\n"
+
+
+def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
+    """``run --out`` and ``pose render`` into a folder that holds the user's own files: a file of
+    the same name as an output is an error before any work, naming it, and stays as it was; with no
+    such file the outputs join the folder and its other files stay (the code before wrote over a
+    results.txt or labels.csv that was there)."""
+    from artmotion.io import atomic_dir, atomic_write
+
+    seq = inp.sequence(tmp_path / "seq")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "results.txt").write_text("my own results\n")
+    (mine / "notes.txt").write_text("notes\n")
+    code, _, err = call("run", seq, "--out", mine, "--no-video")
+    assert_one_line_error(code, err, "results.txt", "not written by this command")
+    assert (mine / "results.txt").read_text() == "my own results\n"
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt", "results.txt"]
+    (mine / "results.txt").unlink()
+    code, _, err = call("run", seq, "--out", mine, "--no-video")
+    assert code == 0, err
+    assert (mine / "notes.txt").read_text() == "notes\n" and (mine / "run.json").is_file()
+    assert not leftovers(tmp_path)
+
+    renders = tmp_path / "renders"
+    renders.mkdir()
+    (renders / "labels.csv").write_text("image,a\n")
+    code, _, err = call("pose", "render", renders, "--poses", "3", "--no-frames")
+    assert_one_line_error(code, err, "labels.csv", "not written by this command")
+    assert (renders / "labels.csv").read_text() == "image,a\n" and not (renders / "crops").exists()
+
+    # an output the caller did not declare is caught before anything is moved in
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "a.txt").write_text("A")
+    (other / "b.txt").write_text("B")
+    with pytest.raises(InputError, match="b.txt: exists and was not written"):
+        with atomic_dir(other, outputs=("c.txt",)) as dst:
+            for name in ("c.txt", "b.txt"):
+                with atomic_write(dst / name) as fh:
+                    fh.write("new")
+    assert {p.name: p.read_text() for p in other.iterdir()} == {"a.txt": "A", "b.txt": "B"}
 
 
 def test_3_huge_trajectory_values_are_one_line(tmp_path):

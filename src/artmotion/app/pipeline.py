@@ -194,7 +194,7 @@ def run_pipeline(
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
-    with atomic_dir(out, replace=_is_run) as dst:
+    with atomic_dir(out, replace=_is_run, outputs=RUN_FILES) as dst:
         if tools is not None:
             manifest, tracks = _run_tools_into(dst, seq, source, fingerprint, tools, object_class, progress, video,
                                                pose)

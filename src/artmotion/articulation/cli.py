@@ -134,7 +134,7 @@ def _write_video_outputs(out: Path, res, d: dict) -> None:
     from artmotion.io.atomic import atomic_dir, atomic_write
     from artmotion.io.media import write_image
 
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, outputs=("result.json", "parts.png")) as tmp:
         with atomic_write(tmp / "result.json") as fh:
             json.dump(d, fh, indent=1, allow_nan=False)
         write_image(tmp / "parts.png", parts_strip(res))

@@ -139,15 +139,18 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", encoding: str | None 
 
 
 @contextlib.contextmanager
-def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None = None) -> Iterator[Path]:
-    """Yield a folder in which to write the outputs that belong in the folder ``path``.
+def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None = None,
+               outputs: Iterable[str] = ()) -> Iterator[Path]:
+    """Yield a temporary folder in which to write the outputs that belong in the folder ``path``.
 
-    When ``path`` does not exist or is empty, the outputs are written into a temporary folder
-    next to it, renamed onto ``path`` when the block succeeds and removed when it fails: a failed
-    or interrupted command leaves no folder. When ``path`` is a folder of earlier outputs that
-    ``replace(path)`` says are this program's own (e.g. a finished run), the new outputs are built
-    the same way and then swapped in for the old ones. Any other existing folder is yielded itself
-    (its other files are not touched; write each output with :func:`atomic_write`)."""
+    When ``path`` does not exist or is empty, the temporary folder (next to it) is renamed onto
+    ``path`` when the block succeeds and removed when it fails: a failed or interrupted command
+    leaves no folder. When ``path`` is a folder of earlier outputs that ``replace(path)`` says are
+    this program's own (e.g. a finished run), the new outputs are built the same way and then
+    swapped in for the old ones. Into any other existing folder the outputs are moved one by one
+    when the block succeeds, and never over a file or folder already there (the program did not
+    create it): ``outputs``, the names the block will write, are checked before it runs, and
+    every name it wrote is checked again before anything is moved (:class:`InputError`)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError("exists and is not a folder", path=path)
@@ -156,12 +159,12 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     except OSError as exc:
         raise InputError(f"cannot read the folder: {exc.strerror}", path=path) from None
     swap = path.is_dir() and not empty and replace is not None and replace(path)
-    if path.is_dir() and not empty and not swap:
-        yield path
-        return
+    foreign = path.is_dir() and not empty and not swap
+    if foreign:
+        _check_free(path, outputs)
     _prepare(path)
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path if foreign else path.parent))
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", path=path) from None
     umask = os.umask(0)
@@ -170,6 +173,13 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     old = None
     try:
         yield tmp
+        if foreign:
+            names = sorted(p.name for p in tmp.iterdir())
+            _check_free(path, names)
+            for name in names:
+                os.rename(tmp / name, path / name)
+            tmp.rmdir()
+            return
         if swap:
             old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old.tmp", dir=path.parent))
             os.replace(path, old)
@@ -193,6 +203,14 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     finally:
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _check_free(folder: Path, names: Iterable[str]) -> None:
+    """An :class:`InputError` naming the first of ``names`` that already exists in ``folder``."""
+    for name in names:
+        if os.path.lexists(folder / name):
+            raise InputError("exists and was not written by this command; choose another output folder "
+                             "or move it away", path=folder / name)
 
 
 def stale_dirs(path: str | os.PathLike) -> list[Path]:

@@ -186,7 +186,7 @@ def eval_cmd(
     from artmotion.io import atomic_dir, atomic_write
 
     # a new --out folder appears only when every table and prediction in it is written
-    with (atomic_dir(out) if out is not None else nullcontext(None)) as dst:
+    with (atomic_dir(out, outputs=("eval.md", "eval.json")) if out is not None else nullcontext(None)) as dst:
         results = {}
         for f in feature:
             t = time.perf_counter()

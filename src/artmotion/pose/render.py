@@ -18,6 +18,7 @@ so a seed always gives the same images.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -438,9 +439,14 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
 MAX_POSES = 1_000_000
 
 
+#: what a rendering folder holds; ``rendering.json`` (how it was rendered) marks it as one
+RENDERING = frozenset({"crops", "frames", "labels.csv", "boxes.csv", "rendering.json"})
+
+
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
                   progress: bool = False, motion: str = "script", scenes: int = 1, style: str = "default") -> Path:
-    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``.
+    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``,
+    ``rendering.json`` (the options it was rendered with).
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
@@ -452,15 +458,19 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
     if style not in (*STYLES, "random"):
         raise InputError(f"unknown style {style!r}; choose one of {', '.join(STYLES)}, random")
     out = Path(out)
-    with atomic_dir(out, replace=_is_rendering) as tmp:
+    with atomic_dir(out, replace=_is_rendering, outputs=RENDERING) as tmp:
         _write_dataset(tmp, n, seed, dark, frames, progress, motion, scenes, style)
+        with atomic_write(tmp / "rendering.json") as fh:
+            json.dump({"poses": n, "seed": seed, "motion": motion, "scenes": scenes, "style": style, "dark": dark,
+                       "frames": frames}, fh, indent=1)
     return out
 
 
 def _is_rendering(folder: Path) -> bool:
-    """Whether ``folder`` holds an earlier rendering and nothing else (it is then replaced whole)."""
+    """Whether ``folder`` holds an earlier rendering and nothing else (it is then replaced whole):
+    its ``rendering.json`` says so (a folder of crops and labels.csv may be a user's own)."""
     names = {p.name for p in folder.iterdir()}
-    return "labels.csv" in names and names <= {"crops", "frames", "labels.csv", "boxes.csv"}
+    return "rendering.json" in names and names <= RENDERING
 
 
 def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool, motion: str,

@@ -155,6 +155,10 @@ def speak(text: str, path: str | os.PathLike, speed: int, exe: str | None = None
             raise InputError(f"espeak-ng failed: {msg[0] if msg else 'no audio written'}", path=path)
 
 
+#: what a dataset folder holds
+DATASET = frozenset({"images", "speech", "index.csv"})
+
+
 def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = None) -> Path:
     """Write the 156 examples under ``out`` (images/, speech/, index.csv); return the index path.
 
@@ -164,7 +168,7 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
     check_seed(seed)
     exe = espeak_path()
     out = Path(out)
-    with atomic_dir(out, replace=_is_dataset) as tmp:
+    with atomic_dir(out, replace=_is_dataset, outputs=DATASET) as tmp:
         _write_examples(tmp, seed, table, exe)
     index = out / "index.csv"
     return index
@@ -173,7 +177,7 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
 def _is_dataset(folder: Path) -> bool:
     """Whether ``folder`` holds an earlier dataset and nothing else (it is then replaced whole)."""
     names = {p.name for p in folder.iterdir()}
-    return "index.csv" in names and names <= {"images", "speech", "index.csv"}
+    return "index.csv" in names and names <= DATASET
 
 
 def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> None:

@@ -311,7 +311,7 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     if out is not None:
         out = Path(out)
         # a new folder appears only with every figure and the report in it
-        with atomic_dir(out) as dst:
+        with atomic_dir(out, outputs=("report.json",)) as dst:
             report["_unseen"], report["_example"] = un, ret["example"]
             report["figures"] = save_figures(report, F, dst) if figures else []
             del report["_unseen"], report["_example"]

@@ -675,6 +675,39 @@ def test_8_ctrl_c_in_batch_is_one_line_with_the_counts(tmp_path):
     assert not [p for p in out.iterdir() if p.name not in finished], "an unfinished run or temporary was left"
 
 
+
+def _children(pid: int) -> list[tuple[int, str]]:
+    """(pid, command line) of the processes whose parent is ``pid`` (Linux /proc)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        try:
+            if d.name.isdigit() and int((d / "stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                out.append((int(d.name), (d / "cmdline").read_bytes().replace(b"\0", b" ").decode()))
+        except (OSError, ValueError, IndexError):
+            continue
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_8_sigterm_while_batch_workers_start_is_one_line(tmp_path):
+    """SIGTERM to the batch while its Dask workers start: multiprocessing's resource tracker (a
+    process of its own, sharing stderr) warned about their semaphores after the one line."""
+    archive = tmp_path / "archive"
+    for i in range(3):
+        inp.sequence(archive / f"s{i}")
+    proc = subprocess.Popen([sys.executable, "-m", "artmotion", "batch", str(archive), "--out", str(tmp_path / "runs"),
+                             "--workers", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(SRC)))
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any("resource_tracker" in cmd for _, cmd in _children(proc.pid)):
+            break
+        time.sleep(0.005)
+    assert proc.poll() is None, "the batch ended before its workers started"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert err.startswith("artmotion: terminated by signal 15") and err.count("\n") == 1, err
+
 # -- 9. index entries lost -------------------------------------------------------------------------
 
 

@@ -8,11 +8,13 @@ it stopped. A local cluster is started by default; give a scheduler address to u
 from __future__ import annotations
 
 import os
+import threading
 import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from artmotion.app.pipeline import is_finished
 from artmotion.errors import ArtmotionError, InputError, Interrupted
@@ -96,19 +98,35 @@ def _start_local_cluster(workers: int, processes: bool):
     blocked = processes and hasattr(signal, "pthread_sigmask")
     if blocked:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    # SIGTERM or SIGHUP while a worker is being spawned would stop this process between starting
+    # the worker and handing it its start-up data (it prints a traceback once this one is gone):
+    # recorded here and delivered once the cluster is up
+    pending: list[int] = []
+    deferred: dict[int, Any] = {}
+    if processes and threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            deferred[sig] = signal.signal(sig, lambda signum, _frame: pending.append(signum))
     cluster = None
     try:
         cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
                                dashboard_address=None, silence_logs=logging.CRITICAL,
                                **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
     finally:
-        if blocked:
-            try:
+        for sig, handler in deferred.items():
+            signal.signal(sig, handler)
+        try:
+            if blocked:
                 signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a Ctrl-C held back lands here
-            except Interrupted:
-                if cluster is not None:
-                    _quietly_close(cluster)
-                raise
+            if pending:
+                handler = deferred[pending[0]]
+                if callable(handler):
+                    handler(pending[0], None)
+                else:
+                    signal.raise_signal(pending[0])
+        except BaseException:
+            if cluster is not None:
+                _quietly_close(cluster)
+            raise
     return cluster
 
 

@@ -112,8 +112,8 @@ def _start_local_cluster(workers: int, processes: bool):
                                dashboard_address=None, silence_logs=logging.CRITICAL,
                                **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
     finally:
-        for sig, handler in deferred.items():
-            signal.signal(sig, handler)
+        for signum, previous in deferred.items():
+            signal.signal(signum, previous)
         try:
             if blocked:
                 signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a Ctrl-C held back lands here

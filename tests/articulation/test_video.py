@@ -4,6 +4,7 @@ import json
 import math
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
@@ -189,6 +190,16 @@ def test_cli_unreadable_video_is_one_line_error(tmp_path, run_cli, content):
     assert err.startswith("artmotion: error: ") and str(bad) in err and err.count("\n") == 1
     assert not (tmp_path / "o").exists()
 
+
+
+def test_cli_one_frame_is_one_line_error(tmp_path, run_cli):
+    """One frame shows no motion at all: an error (it said 'static' with confidence 0.5)."""
+    folder = tmp_path / "one"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "000001.jpg"), np.random.default_rng(0).integers(0, 255, (120, 160, 3), dtype=np.uint8))
+    code, out, err = run_cli("articulation", "video", folder, "--out", tmp_path / "o")
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith(f"artmotion: error: {folder}: 1 frame") and not (tmp_path / "o").exists()
 
 def test_cli_bad_options(tmp_path, run_cli):
     v = tmp_path / "missing.avi"

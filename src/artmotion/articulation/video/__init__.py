@@ -25,6 +25,7 @@ import numpy as np
 
 from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
+from artmotion.errors import InputError
 
 __all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
@@ -99,6 +100,8 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
             kept[last[0]] = last[1]
 
     tracks = point_tracks(frames(), seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
+    if tracks.frames < 2:
+        raise InputError(f"{tracks.frames} frame: motion needs at least two", path=source)
     res = analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
     res.snapshots = kept
     return res

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import time
 from contextlib import closing
 from dataclasses import dataclass
@@ -27,6 +28,7 @@ import numpy as np
 from artmotion import __version__
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, read_mot, write_events, write_mot
+from artmotion.io.atomic import outputs_of
 from artmotion.io.events import event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
@@ -215,10 +217,8 @@ def run_pipeline(
 RUN_FILES = frozenset({MANIFEST, "results.txt", "events.jsonl", "sentences.txt", "report.html", "annotated.mp4"})
 
 
-def _is_run(folder: Path) -> bool:
-    """Whether ``folder`` holds an earlier run and nothing else (a new run then replaces it whole)."""
-    names = {p.name for p in folder.iterdir()}
-    return MANIFEST in names and names <= RUN_FILES
+#: whether a folder holds an earlier run and nothing else (a new run then replaces it whole)
+_is_run = outputs_of(MANIFEST, "|".join(re.escape(n) for n in RUN_FILES), ("files", "sentences"))
 
 
 def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_class: str, experts,

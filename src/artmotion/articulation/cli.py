@@ -131,10 +131,11 @@ def video(
 def _write_video_outputs(out: Path, res, d: dict) -> None:
     """result.json and parts.png (four frames: the tracks so far, by part, and each part's axis)."""
     from artmotion.articulation.video import parts_strip
-    from artmotion.io.atomic import atomic_dir, atomic_write
+    from artmotion.io.atomic import atomic_dir, atomic_write, outputs_of
     from artmotion.io.media import write_image
 
-    with atomic_dir(out, outputs=("result.json", "parts.png")) as tmp:
+    earlier = outputs_of("result.json", r"parts\.png", ("model", "parts", "camera"))   # an earlier answer is replaced
+    with atomic_dir(out, replace=earlier, outputs=("result.json", "parts.png")) as tmp:
         with atomic_write(tmp / "result.json") as fh:
             json.dump(d, fh, indent=1, allow_nan=False)
         write_image(tmp / "parts.png", parts_strip(res))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import json
 import os
 import re
 import shutil
@@ -203,6 +204,27 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     finally:
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def outputs_of(marker: str, names: str, keys: Iterable[str] = ()) -> Callable[[Path], bool]:
+    """A ``replace`` test for :func:`atomic_dir`: the folder holds the JSON object ``marker`` (with
+    ``keys``), written by the same command before, and otherwise only names that match the regular
+    expression ``names`` (the command's other outputs)."""
+    pattern = re.compile(names)
+    want = tuple(keys)
+
+    def test(folder: Path) -> bool:
+        entries = [p.name for p in folder.iterdir()]
+        if marker not in entries or not all(n == marker or pattern.fullmatch(n) for n in entries):
+            return False
+        try:
+            with open(folder / marker, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except (OSError, ValueError, RecursionError):
+            return False
+        return isinstance(data, dict) and all(k in data for k in want)
+
+    return test
 
 
 def _check_free(folder: Path, names: Iterable[str]) -> None:

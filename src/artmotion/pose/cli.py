@@ -184,9 +184,12 @@ def eval_cmd(
     from contextlib import nullcontext
 
     from artmotion.io import atomic_dir, atomic_write
+    from artmotion.io.atomic import outputs_of
 
     # a new --out folder appears only when every table and prediction in it is written
-    with (atomic_dir(out, outputs=("eval.md", "eval.json")) if out is not None else nullcontext(None)) as dst:
+    earlier = outputs_of("eval.json", r"eval\.md|\w+\.csv")    # an earlier evaluation is replaced
+    with (atomic_dir(out, replace=earlier, outputs=("eval.md", "eval.json")) if out is not None
+          else nullcontext(None)) as dst:
         results = {}
         for f in feature:
             t = time.perf_counter()

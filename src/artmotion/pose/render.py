@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from artmotion.errors import InputError, check_range, check_seed
 from artmotion.io import atomic_dir, atomic_write
+from artmotion.io.atomic import outputs_of
 from artmotion.io.media import write_image
 
 ANGLES = ("yaw", "pitch", "roll", "opening")
@@ -466,11 +467,9 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
     return out
 
 
-def _is_rendering(folder: Path) -> bool:
-    """Whether ``folder`` holds an earlier rendering and nothing else (it is then replaced whole):
-    its ``rendering.json`` says so (a folder of crops and labels.csv may be a user's own)."""
-    names = {p.name for p in folder.iterdir()}
-    return "rendering.json" in names and names <= RENDERING
+#: whether a folder holds an earlier rendering and nothing else (it is then replaced whole): its
+#: rendering.json says so (a folder of crops and labels.csv may be a user's own)
+_is_rendering = outputs_of("rendering.json", r"crops|frames|labels\.csv|boxes\.csv", ("poses", "seed"))
 
 
 def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool, motion: str,

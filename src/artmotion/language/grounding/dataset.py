@@ -175,9 +175,9 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
 
 
 def _is_dataset(folder: Path) -> bool:
-    """Whether ``folder`` holds an earlier dataset and nothing else (it is then replaced whole)."""
-    names = {p.name for p in folder.iterdir()}
-    return "index.csv" in names and names <= DATASET
+    """Whether ``folder`` holds an earlier dataset and nothing else (it is then replaced whole): all
+    three of its entries (a lone index.csv may be a user's own)."""
+    return {p.name for p in folder.iterdir()} == DATASET
 
 
 def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> None:

@@ -28,6 +28,7 @@ from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, save_figure
+from artmotion.io.atomic import outputs_of
 from artmotion.io.media import read_image
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
@@ -311,7 +312,8 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     if out is not None:
         out = Path(out)
         # a new folder appears only with every figure and the report in it
-        with atomic_dir(out, outputs=("report.json",)) as dst:
+        earlier = outputs_of("report.json", r"\w+\.png", ("linking", "holdouts"))   # an earlier report is replaced
+        with atomic_dir(out, replace=earlier, outputs=("report.json",)) as dst:
             report["_unseen"], report["_example"] = un, ret["example"]
             report["figures"] = save_figures(report, F, dst) if figures else []
             del report["_unseen"], report["_example"]

@@ -174,10 +174,15 @@ def _damaged_models(model: Path, tmp: Path) -> dict[str, Path]:
         p = tmp / f"{key}.npz"
         np.savez(p, **(d | {change[0]: change[1]}))
         out[key] = p
+    header = tmp / "header.npz"   # an array's header damaged: NumPy's header tokenizer fails
+    data = model.read_bytes()
+    at = data.rindex(b"'shape': (")
+    header.write_bytes(data[:at] + b"'shap\0\0\0\0\0" + data[at + 10:])
+    out["header"] = header
     return out
 
 
-@pytest.mark.parametrize("kind", ["truncated", "renamed", "shape", "inputs", "nan", "names", "text"])
+@pytest.mark.parametrize("kind", ["truncated", "renamed", "shape", "inputs", "nan", "names", "text", "header"])
 def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
     bad = _damaged_models(model, tmp_path)[kind]
     crops = model.parent / "m-crops"
@@ -294,6 +299,17 @@ def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
     code, _, err = call("pose", "render", renders, "--poses", "3", "--no-frames")
     assert_one_line_error(code, err, "labels.csv", "not written by this command")
     assert (renders / "labels.csv").read_text() == "image,a\n" and not (renders / "crops").exists()
+
+    # the same command again into its own outputs replaces them; a look-alike marker is not its own
+    answer = tmp_path / "answer"
+    video = inp.video(tmp_path / "v.avi", n=8)
+    for _ in range(2):
+        code, _, err = call("articulation", "video", video, "--out", answer)
+        assert code == 0, err
+    (answer / "result.json").write_text('{"model": "mine"}')
+    code, _, err = call("articulation", "video", video, "--out", answer)
+    assert_one_line_error(code, err, "result.json", "not written by this command")
+    assert (answer / "result.json").read_text() == '{"model": "mine"}'
 
     # an output the caller did not declare is caught before anything is moved in
     other = tmp_path / "other"

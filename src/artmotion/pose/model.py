@@ -404,6 +404,7 @@ class PoseRegressor:
         of the right type, shape and finite values, the parameters in range, the feature of its
         crop size of the dimension the GP was trained on, and a test prediction finite. A
         truncated, renamed, foreign or damaged file is an :class:`InputError` naming it."""
+        import tokenize
         import zipfile
         import zlib
 
@@ -413,7 +414,9 @@ class PoseRegressor:
         try:
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
-        except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+        # (a damaged array header reaches NumPy's header tokenizer: TokenError, SyntaxError)
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError, tokenize.TokenError,
+                SyntaxError) as exc:
             raise InputError(f"not an artmotion pose model (unreadable: {type(exc).__name__})", path=path) from None
         if not isinstance(d, dict) or "magic" not in d or d["magic"].shape != () or str(d["magic"]) != MAGIC:
             raise InputError("not an artmotion pose model (no magic key)", path=path)

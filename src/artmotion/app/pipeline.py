@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import time
 from contextlib import closing
 from dataclasses import dataclass
@@ -218,7 +217,7 @@ RUN_FILES = frozenset({MANIFEST, "results.txt", "events.jsonl", "sentences.txt",
 
 
 #: whether a folder holds an earlier run and nothing else (a new run then replaces it whole)
-_is_run = outputs_of(MANIFEST, "|".join(re.escape(n) for n in RUN_FILES), ("files", "sentences"))
+_is_run = outputs_of(MANIFEST, RUN_FILES, ("files", "sentences"))
 
 
 def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_class: str, experts,

@@ -134,8 +134,9 @@ def _write_video_outputs(out: Path, res, d: dict) -> None:
     from artmotion.io.atomic import atomic_dir, atomic_write, outputs_of
     from artmotion.io.media import write_image
 
-    earlier = outputs_of("result.json", r"parts\.png", ("model", "parts", "camera"))   # an earlier answer is replaced
-    with atomic_dir(out, replace=earlier, outputs=("result.json", "parts.png")) as tmp:
+    names = ("result.json", "parts.png")
+    earlier = outputs_of("result.json", names, ("model", "parts", "camera"))   # an earlier answer is replaced
+    with atomic_dir(out, replace=earlier, outputs=names) as tmp:
         with atomic_write(tmp / "result.json") as fh:
             json.dump(d, fh, indent=1, allow_nan=False)
         write_image(tmp / "parts.png", parts_strip(res))

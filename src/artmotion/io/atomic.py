@@ -206,16 +206,20 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
             shutil.rmtree(old, ignore_errors=True)
 
 
-def outputs_of(marker: str, names: str, keys: Iterable[str] = ()) -> Callable[[Path], bool]:
+def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()) -> Callable[[Path], bool]:
     """A ``replace`` test for :func:`atomic_dir`: the folder holds the JSON object ``marker`` (with
-    ``keys``), written by the same command before, and otherwise only names that match the regular
-    expression ``names`` (the command's other outputs)."""
-    pattern = re.compile(names)
+    ``keys``), written by the same command before, and otherwise only the command's other outputs:
+    ``names``, a regular expression or the names themselves."""
+    if isinstance(names, str):
+        pattern = re.compile(names)
+        allowed: Callable[[str], bool] = lambda n: pattern.fullmatch(n) is not None   # noqa: E731
+    else:
+        allowed = set(names).__contains__
     want = tuple(keys)
 
     def test(folder: Path) -> bool:
         entries = [p.name for p in folder.iterdir()]
-        if marker not in entries or not all(n == marker or pattern.fullmatch(n) for n in entries):
+        if marker not in entries or not all(n == marker or allowed(n) for n in entries):
             return False
         try:
             with open(folder / marker, encoding="utf-8") as fh:

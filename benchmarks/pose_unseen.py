@@ -1,25 +1,29 @@
 """Pose on motion the model has never seen (issue 17): HOG + GP vs the cnn feature + GP.
 
-    .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv] [--save MODEL]
+    .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv] [--save MODEL] [--resume]
 
-Renders (once, cached under --out) three training sets of 4000 frames, seed 0: ``normal`` (the
-pick-and-place script), ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
-evenly, ten backgrounds) and ``cover_random`` (the same motion with ``--style random``: every
-scene in a random look of tissue and metal), and four unseen test sequences of 600 frames: pick
+Renders (once, cached under --out) five training sets of 4000 frames: ``normal`` (the
+pick-and-place script, seed 0), ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
+evenly, ten backgrounds), ``cover_random`` (the same motion with ``--style random``: every
+scene in a random look of tissue and metal) and ``script3``, ``script4`` (the script with seeds 3
+and 4; the last set's rows calibrate the variance), and four unseen test sequences of 600 frames: pick
 and place with seeds 1 and 2, each in normal light and dark (``--dark``: the same frames in low
 light). Then, every model trained on the training crops only:
 
 * unseen sequences: HOG (the thesis' model on the script set, and on the pooled sets) and cnn
-  (the recipe: all three sets, with the boxes' places in their frames); raw and Kalman-filtered;
+  (the recipe: all five sets, with the boxes' places in their frames); raw and Kalman-filtered;
   ±3σ coverage;
-* protocols side by side on the recipe's 12,000 crops: random 5-fold (the thesis), contiguous 5-fold;
-* learning curve: the cnn model on 1000-12,000 training crops (evenly spaced rows of the three sets);
-* ablations of the cnn model (mean over the four unseen sequences): without the random looks (the
-  previous recipe), no box views, no augmentation, equal loss weights, cover set only, script set only;
+* protocols side by side on the recipe's 20,000 crops: random 5-fold (the thesis), contiguous 5-fold;
+* learning curve: the cnn model on 1000-20,000 training crops (evenly spaced rows of the five sets);
+* ablations of the cnn model (mean over the four unseen sequences): the previous recipes (three
+  sets; two without the random looks), no box views, no augmentation, equal loss weights, cover set
+  only, script set only;
 * error against the distance from a test pose to the nearest training pose;
 * cost: training time on 4000 crops, one frame's prediction, batch throughput (run it alone).
 
-The recipe's model is saved (``--save``) for benchmarks/pose_look.py.
+The recipe's model is saved (``--save``) for benchmarks/pose_look.py. Every result is also kept in
+``OUT/pose_unseen.cache.pkl`` as it comes; ``--resume`` reuses it (after an interrupted run, or to
+time the cost alone on a quiet machine): only with the same code, which the caller must ensure.
 
 Prints Markdown and writes it between ``<!-- pose-unseen -->`` markers of docs/pose.md, and
 docs/pose_unseen.json.
@@ -29,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -50,14 +55,16 @@ RENDERS = {  # name: (poses, seed, dark, motion, scenes, style)
     "normal": (4000, 0, False, "script", 1, "default"),
     "cover": (4000, 0, False, "cover", 10, "default"),
     "cover_random": (4000, 0, False, "cover", 10, "random"),
+    "script3": (4000, 3, False, "script", 1, "default"),
+    "script4": (4000, 4, False, "script", 1, "default"),
     "test": (600, 1, False, "script", 1, "default"),
     "dark": (600, 1, True, "script", 1, "default"),
     "test2": (600, 2, False, "script", 1, "default"),
     "dark2": (600, 2, True, "script", 1, "default"),
 }
 #: the training sets of the recipe (the script, the cover motion, the cover motion in random looks)
-RECIPE = ("cover", "normal", "cover_random")
-RECIPE_LABEL = "cnn + views, three sets (default recipe)"
+RECIPE = ("cover", "normal", "cover_random", "script3", "script4")
+RECIPE_LABEL = "cnn + views, five sets (default recipe)"
 
 UNSEEN = ("test", "dark", "test2", "dark2")
 
@@ -95,8 +102,18 @@ def main(argv=None):
     ap.add_argument("--save", default=str(ROOT / "out" / "pose" / "models" / "cnn-recipe.npz"),
                     help="where the recipe's model is written (for benchmarks/pose_look.py; '' to skip)")
     ap.add_argument("--skip-cv", action="store_true", help="leave out the 5-fold protocols (10 cnn trainings)")
+    ap.add_argument("--resume", action="store_true", help="reuse the results kept by an earlier run of this code")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    cache_path = out / "pose_unseen.cache.pkl"
+    cache: dict = pickle.loads(cache_path.read_bytes()) if args.resume and cache_path.exists() else {}
+
+    def keep(label, value):
+        cache[label] = value
+        tmp = cache_path.with_suffix(".tmp")
+        tmp.write_bytes(pickle.dumps(cache))
+        tmp.replace(cache_path)
+        return value
     data = {k: load(out, k) for k in RENDERS}
     names = data["normal"][0]
     cols = Columns.from_names(names)
@@ -111,23 +128,28 @@ def main(argv=None):
     results: dict = {}
 
     def train(label, feature, tr_imgs, tr_Y, tr_V=None, **kw):
+        if label in cache and (label != RECIPE_LABEL or (args.save and Path(args.save).exists())):
+            results[label] = res = cache[label]
+            print(f"  {label}: {res['mean orientation']:.2f} / {res['mean opening']:.2f} (kept)", flush=True)
+            return (PoseRegressor.load(args.save) if label == RECIPE_LABEL else None), res
         t = time.perf_counter()
         reg = PoseRegressor(feature=feature, **kw).fit(tr_imgs, tr_Y, names, views=tr_V)
         sec = time.perf_counter() - t
         res = score(reg, data, cols, names, tr_V is not None)
         res["train seconds"], res["n"] = sec, len(tr_Y)
         results[label] = res
+        if label == RECIPE_LABEL and args.save:
+            Path(args.save).parent.mkdir(parents=True, exist_ok=True)
+            reg.save(args.save)
+        keep(label, res)
         print(f"  {label}: {res['mean orientation']:.2f} / {res['mean opening']:.2f} ({sec:.0f} s)", flush=True)
         return reg, res
 
     # -- unseen sequences
     train("HOG, script set (the thesis' model)", "hog", data["normal"][1], data["normal"][2])
     train("HOG, script and cover sets", "hog", imgs2, Y2)
-    train("HOG, three sets", "hog", imgs, Y)
+    train("HOG, five sets", "hog", imgs, Y)
     cnn_reg, _ = train(RECIPE_LABEL, "cnn", imgs, Y, V)
-    if args.save:
-        Path(args.save).parent.mkdir(parents=True, exist_ok=True)
-        cnn_reg.save(args.save)
     say("#### Unseen sequences (trained on rendered sets only; mean error in degrees, orientation / opening)")
     say()
     say("| model | n | seq 1 | seq 1 dark | seq 2 | seq 2 dark | **mean** | mean, Kalman-filtered | dark / normal | "
@@ -145,24 +167,26 @@ def main(argv=None):
     for label in list(results):
         row(label)
     # -- ablations of the cnn recipe
-    train("cnn, script and cover sets (no random looks; the previous recipe)", "cnn", imgs2, Y2, V2)
+    train("cnn + views, three sets (the previous recipe)", "cnn", *pooled(RECIPE[:3]))
+    train("cnn, script and cover sets (no random looks; the recipe before)", "cnn", imgs2, Y2, V2)
     train("cnn without views", "cnn", imgs, Y)
     train("cnn without augmentation", "cnn", imgs, Y, V, augment=False)
     train("cnn, opening weight 1 (not 3)", "cnn", imgs, Y, V, opening_weight=1.0)
     train("cnn, cover set only", "cnn", data["cover"][1], data["cover"][2], data["cover"][3])
     train("cnn, script set only", "cnn", data["normal"][1], data["normal"][2], data["normal"][3])
-    for label in ("cnn, script and cover sets (no random looks; the previous recipe)", "cnn without views",
+    for label in ("cnn + views, three sets (the previous recipe)",
+                  "cnn, script and cover sets (no random looks; the recipe before)", "cnn without views",
                   "cnn without augmentation", "cnn, opening weight 1 (not 3)", "cnn, cover set only",
                   "cnn, script set only"):
         row(label)
     say()
     # -- learning curve
-    say("#### Learning curve (cnn + views; every k-th frame of the recipe's three training sets; mean over the four "
+    say("#### Learning curve (cnn + views; every k-th frame of the recipe's five training sets; mean over the four "
         "unseen sequences)")
     say()
     say("| training crops | orientation | opening | all 4 in ±3σ | training (s) |")
     say("|---|---|---|---|---|")
-    sizes = (1000, 2000, 4000, 8000)
+    sizes = (1000, 2000, 4000, 8000, 12000)
     for n in sizes:
         idx = np.round(np.linspace(0, len(Y), n, endpoint=False)).astype(int)
         train(f"cnn, {n} crops", "cnn", [imgs[i] for i in idx], Y[idx], V[idx])
@@ -205,16 +229,18 @@ def main(argv=None):
         for split in ("random", "contiguous"):
             cells = []
             for feature, views in (("hog", None), ("cnn", V)):
-                reg = PoseRegressor(feature=feature)
-                X = reg.features(imgs)
-                m, s, fm, _, _ = cross_validate(X, Y, names, 5, split=split, feature=feature, views=views)
-                cells.append(summary(Y, m, s, fm, cols, names))
-                results[f"{feature} {split} 5-fold"] = cells[-1]
+                label = f"{feature} {split} 5-fold"
+                if label not in cache:
+                    X = PoseRegressor(feature=feature).features(imgs)
+                    m, s, fm, _, _ = cross_validate(X, Y, names, 5, split=split, feature=feature, views=views)
+                    keep(label, summary(Y, m, s, fm, cols, names))
+                cells.append(cache[label])
+                results[label] = cells[-1]
             say(f"| {split} 5-fold | {cells[0]['orientation']:.2f} / {cells[0]['opening']:.2f} | "
                 f"{cells[1]['orientation']:.2f} / {cells[1]['opening']:.2f} | {100 * cells[0]['all in 3sd']:.1f} % | "
                 f"{100 * cells[1]['all in 3sd']:.1f} % |")
         r = results[RECIPE_LABEL]
-        h = results["HOG, three sets"]
+        h = results["HOG, five sets"]
         say(f"| unseen sequences (mean of four) | {h['mean orientation']:.2f} / {h['mean opening']:.2f} | "
             f"{r['mean orientation']:.2f} / {r['mean opening']:.2f} | {100 * h['mean all in 3sd']:.1f} % | "
             f"{100 * r['mean all in 3sd']:.1f} % |")

@@ -135,3 +135,25 @@ def test_fit_gp_inducing_choice_both_work():
         gp = fit_gp(X, Y, method="sparse", n_inducing=40, n_opt=100, restarts=1, inducing=how)
         assert isinstance(gp, SparseGP) and len(np.unique(gp.inducing)) == 40
         assert np.abs(gp.predict(X) - Y).mean() < 0.15
+
+
+
+def test_calibrated_band_holds_its_share_of_new_rows_under_heavy_tailed_errors():
+    """``calibrate``: the ±3σ band is widened until it holds 99.73 % of the held-out last rows, as
+    a Gaussian's would. With heavy-tailed errors (Student-t, 4 d.o.f.) matching the mean squared
+    residual instead left a band that held 98.0-98.9 % of new rows (four seeds; 99.5-99.8 % now);
+    with Gaussian errors the band is not widened."""
+    rng = np.random.default_rng(0)
+
+    def data(n, noise):
+        x = rng.uniform(-3, 3, (n, 1))
+        return x, np.sin(2 * x) + 0.05 * noise(n)[:, None]
+
+    for noise, wide in ((lambda n: rng.standard_t(4, n), True), (rng.standard_normal, False)):
+        X, Y = data(3000, noise)
+        gp = fit_gp(X, Y, method="exact", n_opt=400, calibrate=0.2)
+        Xt, Yt = data(20000, noise)
+        m, s = gp.predict(Xt, return_std=True)
+        inside = float(np.mean(np.abs(Yt - m) <= 3 * s))
+        assert inside > 0.993, inside
+        assert (gp.var_scale[0] > 1.5) == wide, gp.var_scale

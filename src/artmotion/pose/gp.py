@@ -295,6 +295,10 @@ def standardise(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (Y - mean) / std, mean, std
 
 
+#: the share of held-out rows a calibrated ±3σ band holds (a Gaussian's)
+BAND_LEVEL = 0.9973
+
+
 def fit_gp(
     X: np.ndarray,
     Y: np.ndarray,
@@ -317,10 +321,12 @@ def fit_gp(
 
     ``calibrate`` (fraction, 0 = off): the same GP is solved on the first ``1 - calibrate`` of the
     rows (in the given order, i.e. time order for a sequence) and predicts the last block; the
-    predictive variance of each output is then scaled by the mean squared standardised residual
-    there (never below 1). Neighbouring frames make the marginal-likelihood noise estimate
-    optimistic for new stretches of motion; this puts the variance back on the scale of errors
-    on unseen data.
+    predictive variance of each output is then scaled so that its ±3σ band holds as many of those
+    held-out rows as a Gaussian ±3σ band would (99.73 %: a split-conformal calibration,
+    ``(q(|z|) / 3)²`` with ``z`` the standardised residuals; never below 1). Neighbouring frames
+    make the marginal-likelihood noise estimate optimistic for new stretches of motion, and the
+    residuals are heavy-tailed: matching the mean squared residual instead left the band too narrow
+    (docs/pose.md).
 
     ``inducing``: how the sparse GP picks its inducing inputs, ``"kmeans"`` (default) or
     ``"random"`` (see :func:`choose_inducing`). ``neighbours``: the exact GP's variance from that
@@ -356,7 +362,8 @@ def fit_gp(
     n_cal = int(round(n * (1 - calibrate))) if calibrate else n
     if 10 <= n_cal <= n - 10:
         m, s = build(X[:n_cal], Ys[:n_cal]).predict(X[n_cal:], return_std=True)
-        scale = np.maximum(1.0, (((Ys[n_cal:] - m) / s) ** 2).mean(0))
+        z = np.abs(Ys[n_cal:] - m) / s
+        scale = np.maximum(1.0, (np.quantile(z, BAND_LEVEL, axis=0) / 3.0) ** 2)
     gp = build(X, Ys)
     gp.y_mean, gp.y_std, gp.var_scale = y_mean, y_std, scale
     return gp

@@ -62,7 +62,8 @@ RENDERS = {  # name: (poses, seed, dark, motion, scenes, style)
     "test2": (600, 2, False, "script", 1, "default"),
     "dark2": (600, 2, True, "script", 1, "default"),
 }
-#: the training sets of the recipe (the script, the cover motion, the cover motion in random looks)
+#: the training sets of the recipe (the script, the cover motion, the cover motion in random looks, two more
+#: script renders); the last set's rows calibrate the variance (the network never sees them)
 RECIPE = ("cover", "normal", "cover_random", "script3", "script4")
 RECIPE_LABEL = "cnn + views, five sets (default recipe)"
 

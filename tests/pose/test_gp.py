@@ -137,7 +137,6 @@ def test_fit_gp_inducing_choice_both_work():
         assert np.abs(gp.predict(X) - Y).mean() < 0.15
 
 
-
 def test_calibrated_band_holds_its_share_of_new_rows_under_heavy_tailed_errors():
     """``calibrate``: the ±3σ band is widened until it holds 99.73 % of the held-out last rows, as
     a Gaussian's would. With heavy-tailed errors (Student-t, 4 d.o.f.) matching the mean squared

@@ -78,6 +78,25 @@ def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = N
     return np.maximum(2.0 * d2.var(axis=0) / dt**4, 1e-6)
 
 
+def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]:
+    """Rows reordered so that the calibration rows come last, how many they are, and a frame
+    number per row (in the original order) whose steps are 1 only within a group.
+
+    The calibration rows are the last ``CALIBRATE`` of every group (``groups`` None: of all rows);
+    :meth:`PoseRegressor.fit` trains on the others and calibrates the GP's variance on them."""
+    g = np.zeros(n, dtype=int) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
+    if len(g) != n:
+        raise InputError(f"{n} training rows but {len(g)} groups")
+    held = np.zeros(n, dtype=bool)
+    for k in np.unique(g):
+        rows = np.flatnonzero(g == k)
+        held[rows[len(rows) - int(round(len(rows) * CALIBRATE)):]] = True
+    if n - held.sum() < 3:  # too few to train on: calibrate on none
+        held[:] = False
+    frames = np.arange(n) + 2 * np.concatenate([[0], np.cumsum(g[1:] != g[:-1])])
+    return np.concatenate([np.flatnonzero(~held), np.flatnonzero(held)]), int(held.sum()), frames
+
+
 class PoseFilter:
     """Per-angle Kalman filter, constant velocity with white-noise acceleration (Eq. 3.6, 3.7).
 
@@ -227,11 +246,17 @@ class PoseRegressor:
         return V if (self.feature == "cnn" if fitting else self.uses_views_) else None
 
     # -- training / prediction
-    def fit(self, images, Y, names: Sequence[str] | None = None, views=None):
+    def fit(self, images, Y, names: Sequence[str] | None = None, views=None, groups=None):
         """Fit on crops (list of images) or a precomputed feature matrix, and angles ``Y`` (n, k).
 
         ``views`` (``cnn`` only, else ignored): :func:`artmotion.pose.features.box_views` of the
-        crops' boxes; a model trained with them needs them at prediction too."""
+        crops' boxes; a model trained with them needs them at prediction too.
+
+        The GP's variance is calibrated on the last ``CALIBRATE`` of the rows (a ``cnn`` network
+        never sees them). ``groups`` (one label per row: the recording or render each crop comes
+        from, each group's rows in time order): the last ``CALIBRATE`` of every group instead, so
+        that every kind of training motion is in the calibration, and the motion prior's second
+        differences never straddle two groups. Without ``groups`` the rows are one sequence."""
         X = self._as_features(images)
         Y = np.asarray(Y, dtype=float)
         Y = Y.reshape(len(Y), -1)
@@ -245,14 +270,17 @@ class PoseRegressor:
         self.pca_mean_ = self.pca_components_ = None
         self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None
         V = self._check_views(views, len(X), fitting=True)
+        order, n_cal, frames = calibration_order(len(X), groups)
+        self.accel_var_ = accel_variance(Y, frames=frames)
+        if np.any(order != np.arange(len(X))):  # (a copy of every crop: only with groups)
+            X, Y, V = X[order], Y[order], None if V is None else V[order]
         if self.feature == "cnn":
             need_package("torch", "tools", "the cnn pose feature")
             from artmotion.pose import cnn
 
-            # the network never sees the last rows, on which the GP's variance is calibrated
-            # (``fit_gp(calibrate=CALIBRATE)``): a network's feature of its own training crops is
-            # optimistic, and so would the variance be
-            m = max(3, int(round(len(X) * (1 - CALIBRATE))))
+            # the network never sees the calibration rows (the last ones after ``order``): a
+            # network's feature of its own training crops is optimistic, and so would the variance be
+            m = len(X) - n_cal
             crops = np.asarray(X[:m], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
             weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
             self.net_ = cnn.fit_net(crops, Y[:m], self.net_steps, seed=self.seed, extra=None if V is None else V[:m],
@@ -268,8 +296,7 @@ class PoseRegressor:
             self.pca_components_ = pca.components_.astype(np.float32)
         self.gp_ = fit_gp(self._project(X, V), Y, self.method, self.max_exact, self.n_inducing, self.n_opt,
                           self.restarts, self.seed, progress=self.progress, inducing=self.inducing,
-                          neighbours=self.neighbours, calibrate=CALIBRATE)
-        self.accel_var_ = accel_variance(Y)
+                          neighbours=self.neighbours, calibrate=n_cal / len(X))
         return self
 
     def _as_features(self, images) -> np.ndarray:

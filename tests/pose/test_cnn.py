@@ -172,3 +172,37 @@ def test_cli_trains_and_predicts_with_boxes(rendered, run_cli, tmp_path):
     code, out, err = run_cli("run", root / "test" / "frames", "--det", det, "--class", "tool", "--pose-model", model,
                              "--out", tmp_path / "run", "--no-video")
     assert code == 0, err
+
+
+def test_cli_trains_on_several_sequences(rendered, run_cli, tmp_path):
+    """``pose train --set DIR ...``: several rendered sequences, each calibrated on its own end."""
+    import shutil
+
+    root, _ = rendered
+    model = tmp_path / "m.npz"
+    code, out, err = run_cli("pose", "train", "--set", root / "train", "--set", root / "test", "--model", model,
+                             "--feature", "cnn", "--steps", 20)
+    assert code == 0, err
+    assert "on 360 crops from 2 sequences" in out
+    code, out, err = run_cli("pose", "predict", model, root / "test" / "crops", "--out", tmp_path / "p.csv",
+                             "--boxes", root / "test" / "boxes.csv")
+    assert code == 0, err  # a model trained on sets with boxes.csv uses the boxes
+    other = tmp_path / "other"
+    shutil.copytree(root / "test", other)
+    (other / "boxes.csv").unlink()
+    lines = (other / "labels.csv").read_text().splitlines()
+    bad = {
+        ("--set", other): "boxes for some training sequences but not for all",
+        ("--set", tmp_path / "nowhere"): "a training set is a folder with crops/ and labels.csv",
+        ("--boxes", root / "test" / "boxes.csv", "--set", root / "test"): "--boxes goes with IMAGES",
+    }
+    for args, message in bad.items():
+        code, out, err = run_cli("pose", "train", "--set", root / "train", *args, "--model", tmp_path / "x.npz")
+        assert code == 2 and message in err and err.count("\n") == 1, (args, err)
+    code, out, err = run_cli("pose", "train", "--model", tmp_path / "x.npz")
+    assert code == 2 and "give the training crops" in err, err
+    (other / "labels.csv").write_text("\n".join(["image,yaw,pitch,roll,jaw"] + lines[1:]) + "\n")
+    code, out, err = run_cli("pose", "train", other / "crops", other / "labels.csv", "--boxes", root / "test" / "boxes.csv",
+                             "--set", root / "test", "--model", tmp_path / "x.npz")
+    assert code == 2 and "differ from the first sequence's" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "x.npz").exists()

@@ -61,38 +61,70 @@ def render_cmd(
 
 @pose_app.command("train")
 def train_cmd(
-    images: Path = typer.Argument(..., help="Folder of crops (any size)."),
-    labels: Path = typer.Argument(..., help="CSV 'image,<angle name>,...' in degrees."),
+    images: Optional[Path] = typer.Argument(None, help="Folder of crops (any size): one sequence."),
+    labels: Optional[Path] = typer.Argument(None, help="CSV 'image,<angle name>,...' in degrees."),
     model: Path = typer.Option(..., "--model", help="Model file to write (.npz)."),
     feature: str = typer.Option("hog", "--feature", help="hog, lbp or cnn (a small network trained here; needs PyTorch)."),
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
+    sets: Optional[list[Path]] = typer.Option(None, "--set", help=(
+        "A further training sequence: a folder as 'pose render' writes it (crops/, labels.csv and, for every set or "
+        "none, boxes.csv). Repeatable; the variance is calibrated on the end of every sequence.")),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
     components: int = typer.Option(128, "--components", help="Principal components of the feature (0 = raw feature)."),
     steps: int = typer.Option(3000, "--steps", help="cnn: training mini-batches of 64 crops."),
     seed: int = typer.Option(0, "--seed"),
 ):
-    """Learn one Gaussian process per angle from labelled crops."""
+    """Learn one Gaussian process per angle from labelled crops (one sequence, or several with --set)."""
+    import numpy as np
+
     from artmotion.io import check_writable
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
-    check_writable(model, inputs=(labels, boxes))
+    if (images is None) != (labels is None):
+        raise InputError("IMAGES and LABELS go together")
+    if images is None and not sets:
+        raise InputError("give the training crops: IMAGES LABELS.csv, or --set DIR (one or more)")
+    if images is None and boxes is not None:
+        raise InputError("--boxes goes with IMAGES (a --set folder has its own boxes.csv)")
+    seqs = [] if images is None or labels is None else [(images, labels, boxes)]
+    for d in sets or []:
+        if not (d / "crops").is_dir() or not (d / "labels.csv").is_file():
+            raise InputError("a training set is a folder with crops/ and labels.csv (pose render writes one)", path=d)
+        seqs.append((d / "crops", d / "labels.csv", d / "boxes.csv" if (d / "boxes.csv").is_file() else None))
+    if len({b is None for _, _, b in seqs}) > 1:
+        raise InputError("boxes for some training sequences but not for all: "
+                         + ", ".join(str(i) for i, _, b in seqs if b is None) + " have none")
+    check_writable(model, inputs=[f for _, lab, b in seqs for f in (lab, b)])
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
     check_range("--steps", steps, 1, 1_000_000, integer=True)
     check_seed(seed)
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
                         seed=seed, progress=True, net_steps=steps)  # checks feature and method before any image is read
-    names, paths, imgs, Y = load_labelled(images, labels, progress=True)
-    views = _views(boxes, paths)
+    names: list[str] = []
+    imgs: list = []
+    Ys, Vs, groups = [], [], []
+    for k, (im, lab, bx) in enumerate(seqs):
+        n_k, paths, imgs_k, Y_k = load_labelled(im, lab, progress=True)
+        if names and n_k != names:
+            raise InputError(f"angles {','.join(n_k)} differ from the first sequence's {','.join(names)}", path=lab)
+        names = n_k
+        imgs += imgs_k
+        Ys.append(Y_k)
+        Vs.append(_views(bx, paths))
+        groups += [k] * len(Y_k)
+    Y = np.concatenate(Ys)
+    views = None if seqs[0][2] is None else np.concatenate([v for v in Vs if v is not None])
     t = time.perf_counter()
-    reg.fit(imgs, Y, names, views=views)
+    reg.fit(imgs, Y, names, views=views, groups=groups)
     reg.save(model)
     gp = reg.gp_
     assert gp is not None  # fitted
     hyp = ", ".join(f"{n}: l={h.length:.3g} sn={h.sn2 ** 0.5 * s:.3g}°" for n, h, s in zip(names, gp.hypers, gp.y_std))
-    typer.echo(f"trained {gp.kind} GP on {len(Y)} crops, {gp.n_outputs} angles, feature {feature} "
+    source = f" from {len(seqs)} sequences" if len(seqs) > 1 else ""
+    typer.echo(f"trained {gp.kind} GP on {len(Y)} crops{source}, {gp.n_outputs} angles, feature {feature} "
                f"({time.perf_counter() - t:.1f} s) -> {model}")
     typer.echo(f"  {hyp}")
 

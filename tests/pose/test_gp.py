@@ -163,6 +163,7 @@ def test_groups_calibrate_on_the_end_of_every_group_and_keep_the_motion_prior_wi
     group. Two pooled recordings, the noisy one first: calibrated on the end of the pooled rows (the
     quiet recording only), the band holds 95.2-97.0 % of new noisy rows (four seeds); calibrated on the
     end of each, 99.3-99.6 %."""
+    from artmotion.errors import InputError
     from artmotion.pose.model import PoseRegressor, calibration_order
 
     rng = np.random.default_rng(1)
@@ -185,5 +186,5 @@ def test_groups_calibrate_on_the_end_of_every_group_and_keep_the_motion_prior_wi
     order, n_cal, frames = calibration_order(10, [5] * 5 + [2] * 5)
     assert n_cal == 2 and list(order) == [0, 1, 2, 3, 5, 6, 7, 8, 4, 9]
     assert list(np.diff(frames)) == [1, 1, 1, 1, 3, 1, 1, 1, 1]  # no second difference across the seam
-    with pytest.raises(Exception, match="10 training rows but 3 groups"):
+    with pytest.raises(InputError, match="10 training rows but 3 groups"):
         calibration_order(10, [0, 0, 1])

@@ -195,6 +195,7 @@ def test_cli_trains_on_several_sequences(rendered, run_cli, tmp_path):
         ("--set", other): "boxes for some training sequences but not for all",
         ("--set", tmp_path / "nowhere"): "a training set is a folder with crops/ and labels.csv",
         ("--boxes", root / "test" / "boxes.csv", "--set", root / "test"): "--boxes goes with IMAGES",
+        ("--set", root / "train"): "the same training sequence given twice",
     }
     for args, message in bad.items():
         code, out, err = run_cli("pose", "train", "--set", root / "train", *args, "--model", tmp_path / "x.npz")

@@ -93,6 +93,11 @@ def train_cmd(
         if not (d / "crops").is_dir() or not (d / "labels.csv").is_file():
             raise InputError("a training set is a folder with crops/ and labels.csv (pose render writes one)", path=d)
         seqs.append((d / "crops", d / "labels.csv", d / "boxes.csv" if (d / "boxes.csv").is_file() else None))
+    seen: set[Path] = set()
+    for im, _, _ in seqs:
+        if im.resolve() in seen:
+            raise InputError("the same training sequence given twice", path=im)
+        seen.add(im.resolve())
     if len({b is None for _, _, b in seqs}) > 1:
         raise InputError("boxes for some training sequences but not for all: "
                          + ", ".join(str(i) for i, _, b in seqs if b is None) + " have none")

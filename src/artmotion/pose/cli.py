@@ -79,7 +79,7 @@ def train_cmd(
     import numpy as np
 
     from artmotion.io import check_writable
-    from artmotion.pose.data import load_labelled
+    from artmotion.pose.data import load_labelled, read_views
     from artmotion.pose.model import PoseRegressor
 
     if (images is None) != (labels is None):
@@ -110,7 +110,7 @@ def train_cmd(
                         seed=seed, progress=True, net_steps=steps)  # checks feature and method before any image is read
     names: list[str] = []
     imgs: list = []
-    Ys, Vs, groups = [], [], []
+    Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)
     for k, (im, lab, bx) in enumerate(seqs):
         n_k, paths, imgs_k, Y_k = load_labelled(im, lab, progress=True)
         if names and n_k != names:
@@ -118,10 +118,11 @@ def train_cmd(
         names = n_k
         imgs += imgs_k
         Ys.append(Y_k)
-        Vs.append(_views(bx, paths))
+        if bx is not None:
+            Vs.append(read_views(bx, paths))
         groups += [k] * len(Y_k)
     Y = np.concatenate(Ys)
-    views = None if seqs[0][2] is None else np.concatenate([v for v in Vs if v is not None])
+    views = np.concatenate(Vs) if Vs else None
     t = time.perf_counter()
     reg.fit(imgs, Y, names, views=views, groups=groups)
     reg.save(model)

@@ -272,29 +272,30 @@ class PoseRegressor:
         V = self._check_views(views, len(X), fitting=True)
         order, n_cal, frames = calibration_order(len(X), groups)
         self.accel_var_ = accel_variance(Y, frames=frames)
-        if np.any(order != np.arange(len(X))):  # (a copy of every crop: only with groups)
-            X, Y, V = X[order], Y[order], None if V is None else V[order]
+        in_order = np.array_equal(order, np.arange(len(X)))  # without groups: no copy of the crops
         if self.feature == "cnn":
             need_package("torch", "tools", "the cnn pose feature")
             from artmotion.pose import cnn
 
-            # the network never sees the calibration rows (the last ones after ``order``): a
-            # network's feature of its own training crops is optimistic, and so would the variance be
+            # the network never sees the calibration rows (the last ones of ``order``): a network's
+            # feature of its own training crops is optimistic, and so would the variance be
             m = len(X) - n_cal
-            crops = np.asarray(X[:m], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
+            rows = order[:m]
+            crops = np.asarray(X[:m] if in_order else X[rows], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
             weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
-            self.net_ = cnn.fit_net(crops, Y[:m], self.net_steps, seed=self.seed, extra=None if V is None else V[:m],
+            self.net_ = cnn.fit_net(crops, Y[rows], self.net_steps, seed=self.seed, extra=None if V is None else V[rows],
                                     augmented=self.augment, weights=np.array(weights), progress=self.progress)
-            self.net_mu_, self.net_sd_ = cnn.target_scale(Y[:m])
+            self.net_mu_, self.net_sd_ = cnn.target_scale(Y[rows])
             self.readout_ = np.array([self.net_mean == "all" or (self.net_mean == "opening" and is_opening(n))
                                       for n in self.names_])
         elif self.n_components is not None and self.n_components < min(X.shape):
             from sklearn.decomposition import PCA
 
-            pca = PCA(self.n_components, svd_solver="randomized", random_state=self.seed).fit(X)
+            pca = PCA(self.n_components, svd_solver="randomized", random_state=self.seed).fit(X if in_order else X[order])
             self.pca_mean_ = pca.mean_.astype(np.float32)
             self.pca_components_ = pca.components_.astype(np.float32)
-        self.gp_ = fit_gp(self._project(X, V), Y, self.method, self.max_exact, self.n_inducing, self.n_opt,
+        # the GP's rows in ``order`` (calibration rows last); projected first, so no crop is copied
+        self.gp_ = fit_gp(self._project(X, V)[order], Y[order], self.method, self.max_exact, self.n_inducing, self.n_opt,
                           self.restarts, self.seed, progress=self.progress, inducing=self.inducing,
                           neighbours=self.neighbours, calibrate=n_cal / len(X))
         return self

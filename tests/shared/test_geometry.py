@@ -2,25 +2,27 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from artmotion.errors import InputError
 from artmotion.geometry import (
     angle_between,
     axis_angle_to_matrix,
     box_area,
     box_center,
     box_from_center,
+    box_overlap,
     clip_box,
     intersection,
     iou,
     iou_matrix,
     matrix_to_axis_angle,
     matrix_to_quat,
+    max_iou,
     overlap_ratio,
     quat_to_matrix,
     union_box,
     xywh_to_xyxy,
     xyxy_to_xywh,
 )
-from artmotion.errors import InputError
 
 coord = st.floats(-1000, 1000, allow_nan=False)
 size = st.floats(0.5, 500, allow_nan=False)
@@ -57,6 +59,15 @@ def test_union_box_contains_members(boxes):
     u = union_box(boxes)
     for b in boxes:
         assert np.isclose(overlap_ratio(b, u), 1.0)
+
+
+@given(box, st.lists(box, max_size=6))
+def test_scalar_helpers_equal_the_array_functions(a, boxes):
+    # the tracker's per-box fast paths must give the very same numbers (its outputs depend on them)
+    assert max_iou(a, boxes) == (iou_matrix(a, boxes).max() if boxes else 0.0)
+    for b in boxes:
+        assert box_overlap(a, b) == float(overlap_ratio(a, b))
+    assert box_overlap([0, 0, 0, 5], [0, 0, 10, 10]) == 0.0      # an empty box is covered by nothing
 
 
 def test_iou_known_values():

@@ -190,3 +190,19 @@ def test_row_medians_equal_numpy_median():
         a = rng.normal(size=(2, n)) * rng.uniform(0.1, 10)
         assert np.array_equal(_row_medians(a), np.median(a, axis=1))
     assert np.isnan(_row_medians(np.zeros((2, 0)))).all()
+
+
+def test_a_still_camera_asks_for_its_image_only_when_it_checks():
+    """The grey image may be given as a function: a still camera calls it on its check frames
+    only (every ``check`` seconds), so the tracker does not convert every frame."""
+    big = _texture(400, 600, seed=3)
+    cam = CameraMotion(fps=10, check=0.5, settle=1.0)
+    calls, frame = [], [0]
+
+    def image():
+        calls.append(frame[0])
+        return big[50:290, 60:380]
+
+    for frame[0] in range(1, 13):
+        assert cam.step(image, 0.5) is None
+    assert calls == [1, 6, 11] and not cam.moving

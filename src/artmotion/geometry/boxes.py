@@ -65,6 +65,37 @@ def overlap_ratio(a, b) -> np.ndarray:
     return np.divide(inter, area, out=np.zeros_like(inter, dtype=float), where=area > 0)
 
 
+def _overlap_terms(a: list, b: list) -> tuple[float, float, float]:
+    """Intersection and areas of two boxes given as lists of floats: the arithmetic of
+    :func:`intersection` and :func:`box_area` on Python floats (the same numbers, without NumPy's
+    fixed cost per call, which dominates on one box)."""
+    ax, ay, aw, ah = a
+    bx, by, bw, bh = b
+    w = min(ax + aw, bx + bw) - max(ax, bx)
+    h = min(ay + ah, by + bh) - max(ay, by)
+    inter = max(w, 0.0) * max(h, 0.0)
+    return inter, max(aw, 0.0) * max(ah, 0.0), max(bw, 0.0) * max(bh, 0.0)
+
+
+def max_iou(box, boxes) -> float:
+    """Largest IoU of one ``box`` with any of ``boxes`` (``(N, 4)``; 0 when there are none):
+    ``iou_matrix(box, boxes).max()`` for the few boxes of one frame."""
+    a = np.asarray(box, dtype=float).reshape(4).tolist()
+    best = 0.0
+    for b in np.asarray(boxes, dtype=float).reshape(-1, 4).tolist():
+        inter, area_a, area_b = _overlap_terms(a, b)
+        union = area_a + area_b - inter
+        best = max(best, inter / union if union > 0 else 0.0)
+    return best
+
+
+def box_overlap(a, b) -> float:
+    """:func:`overlap_ratio` of two single boxes, as a float."""
+    inter, area, _ = _overlap_terms(np.asarray(a, dtype=float).reshape(4).tolist(),
+                                    np.asarray(b, dtype=float).reshape(4).tolist())
+    return inter / area if area > 0 else 0.0
+
+
 def union_box(boxes) -> np.ndarray:
     """Smallest box spanning all ``boxes`` (a group node's extent, Eq. 2.12-2.13)."""
     xyxy = xywh_to_xyxy(np.asarray(boxes, dtype=float).reshape(-1, 4))

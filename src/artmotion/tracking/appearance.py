@@ -24,7 +24,7 @@ def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.
     """
     if image.dtype != np.uint8:
         raise ValueError(f"rgb_histogram needs an 8-bit image, got {image.dtype}")
-    x, y, w, h = (float(v) * scale for v in np.asarray(box, dtype=float).reshape(4))
+    x, y, w, h = (v * scale for v in np.asarray(box, dtype=float).reshape(4).tolist())
     x0 = max(0, math.floor(x + shrink * w))
     y0 = max(0, math.floor(y + shrink * h))
     x1 = min(image.shape[1], math.ceil(x + (1 - shrink) * w))
@@ -33,14 +33,14 @@ def rgb_histogram(image: np.ndarray, box, scale: float = 1.0, shrink: float = 0.
         return None
     step = 2 if (x1 - x0) * (y1 - y0) > 400 else 1      # subsample large boxes
     channels = image.shape[2] if image.ndim == 3 else 1
-    edges = [y0, y1] if parts == 1 else np.linspace(y0, y1, parts + 1).round().astype(int)
+    edges = [y0, y1] if parts == 1 else np.linspace(y0, y1, parts + 1).round().astype(int).tolist()
     offsets = np.arange(channels, dtype=np.intp) * BINS
     hists = []
     for a, b in zip(edges[:-1], edges[1:]):
         # the bin of an 8-bit value is its top four bits; one count over the channels' bins
         q = (image[a:b:step, x0:x1:step].reshape(-1, channels) >> _SHIFT) + offsets
         hists.append(np.bincount(q.ravel(), minlength=channels * BINS).reshape(channels, BINS))
-    hist = np.concatenate(hists).astype(float)
+    hist = (hists[0] if parts == 1 else np.concatenate(hists)).astype(float)
     hist += _EPS * hist.sum(axis=1, keepdims=True) + 1e-9
     return hist / hist.sum(axis=1, keepdims=True)
 

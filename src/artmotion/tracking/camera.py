@@ -129,12 +129,19 @@ class CameraMotion:
         h, w = grey.shape[:2]
         return _displacement(A, w, h) > self.moving_px * float(np.hypot(w, h)) * frames ** 0.5
 
-    def step(self, grey: np.ndarray, scale: float, exclude=None) -> np.ndarray | None:
+    def step(self, grey, scale: float, exclude=None) -> np.ndarray | None:
         """Motion from the previous call's image to ``grey`` in full-image pixels.
 
-        ``exclude``: boxes (full-image pixels) of the tracked objects, left out of the estimate.
+        ``grey``: the image, or a function without arguments that returns it (called only on
+        the frames the estimator looks at: a still camera's image is needed every ``check``
+        seconds only). ``exclude``: boxes (full-image pixels) of the tracked objects, left out of
+        the estimate.
         """
         self._n += 1
+        if not self.moving and self._ref is not None and self._n - self._ref_n < self.check:
+            return None         # a still camera between two checks: nothing to look at
+        if callable(grey):
+            grey = grey()
         ex = None if exclude is None else np.asarray(exclude, dtype=float).reshape(-1, 4) * scale
         A_small: np.ndarray | None = None
         if self.moving:

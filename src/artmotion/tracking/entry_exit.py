@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from artmotion.geometry import box_center, overlap_ratio
+from artmotion.geometry import box_center, box_overlap
 from artmotion.tracking.appearance import kl_divergence, rgb_histogram
 
 __all__ = ["appearance_exit", "outside", "side_of", "track_ends", "track_events"]
@@ -37,7 +37,7 @@ def side_of(box, width: int, height: int, margin: float = 0.3) -> str:
 
 def outside(box, width: int, height: int) -> bool:
     """Less than half of the box is inside the image."""
-    return float(overlap_ratio(np.asarray(box, dtype=float), np.array([0.0, 0.0, width, height]))) < 0.5
+    return box_overlap(box, (0.0, 0.0, width, height)) < 0.5
 
 
 def appearance_exit(track, frame, box, exit_kl: float, parts: int = 1) -> bool:

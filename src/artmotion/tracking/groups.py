@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.geometry import box_center, intersection, iou_matrix, overlap_ratio, union_box
+from artmotion.geometry import box_center, box_overlap, intersection, iou_matrix, union_box
 from artmotion.tracking.appearance import kl_divergence
 from artmotion.tracking.association import assign
 
@@ -54,7 +54,7 @@ def occlusions(hidden: list, visible: list, merge_iou: float) -> list[tuple]:
 
 def joins(track, group: Group, ratio: float) -> bool:
     """Eq. 2.12: the share of the track's box inside the group's box is at least ``ratio``."""
-    return float(overlap_ratio(track.box, group.box())) >= ratio
+    return box_overlap(track.box, group.box()) >= ratio
 
 
 def update_groups(groups: list, tracks: list, matched: dict, n: int, cfg, next_id: int) -> int:

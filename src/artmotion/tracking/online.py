@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.geometry import iou_matrix
+from artmotion.geometry import iou_matrix, max_iou
 from artmotion.tracking.appearance import kl_matrix, rgb_histogram
 from artmotion.tracking.association import INF, assign, iou_cost
 from artmotion.tracking.camera import CameraMotion, CameraPath
@@ -217,7 +217,7 @@ class OnlineTracker:
         # 1. camera motion, then prediction (Eq. 2.10)
         warp = None
         if self.camera is not None:
-            A = self.camera.step(frame.grey, frame.scale,
+            A = self.camera.step(lambda: frame.grey, frame.scale,
                                  exclude=[t.box for t in tracks if t.state == "confirmed"])
             if A is not None:
                 self.camera_path.add(n, A)
@@ -277,7 +277,7 @@ class OnlineTracker:
             if self._needs_hist():
                 # appearance from clean views only (no other track over the detection)
                 others = [o.box for o in tracks if o is not t and o.state == "confirmed"]
-                if not others or iou_matrix(d[None, :4], np.array(others)).max() < 0.1:
+                if max_iou(d[:4], others) < 0.1:
                     self._update_hist(t, frame, d[:4], self._det_hist(frame, j))
         if len(slots):
             boxes = self.bank.boxes(slots)
@@ -305,7 +305,7 @@ class OnlineTracker:
             live = [t.box for t in self.tracks]
             for j in free:
                 d = dets[j]
-                if live and iou_matrix(d[None, :4], np.array(live)).max() >= cfg.birth_iou:
+                if max_iou(d[:4], live) >= cfg.birth_iou:
                     continue
                 t = self._new_track(frame, d, self._det_hist(frame, j) if self._needs_hist() else None)
                 live.append(t.box)
@@ -313,8 +313,10 @@ class OnlineTracker:
         if self.groups:
             self.group_log[n] = {g.id: tuple(m.id for m in g.members) for g in self.groups}
         self._online_rows(n)
-        if self.pote is not None or self._needs_hist():
-            frame.small, frame.grey    # noqa: B018 - keep the small images (histograms, experts)
+        if self.pote is not None:
+            frame.small, frame.grey    # noqa: B018 - keep the small images (experts, histograms)
+        elif self._needs_hist():
+            frame.small                # noqa: B018 - keep the small image (histograms)
         frame.drop_image()
         self.prev = frame
 

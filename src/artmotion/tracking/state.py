@@ -24,6 +24,7 @@ __all__ = ["NoiseEstimator", "DETECTED", "GROUP", "INTERPOLATED", "KINDS", "LOST
 #: offline interpolation
 KINDS = ("det", "lost", "group", "tentative", "interp")
 DETECTED, LOST, GROUP, TENTATIVE, INTERPOLATED = range(len(KINDS))
+_DIAG = np.arange(4)
 
 
 def boxes_to_z(boxes) -> np.ndarray:
@@ -119,22 +120,20 @@ class KalmanBank:
         if not len(slots):
             return
         x, P = self.x[slots], self.P[slots]
+        # Q = B Σ_a B' per coordinate, Σ_a proportional to the box size (before the step)
+        sa = (np.maximum(x[:, 2:4], 1.0)[:, [0, 1, 0, 1]] * self.rel_accel) ** 2
         x[:, :4] += dt * x[:, 4:]
-        # P <- F P F' with F = [[I, dt I], [0, I]], by blocks
+        # P <- F P F' with F = [[I, dt I], [0, I]], by blocks (in place: P is a copy)
         A, B, C, D = P[:, :4, :4], P[:, :4, 4:], P[:, 4:, :4], P[:, 4:, 4:]
-        A2 = A + dt * (B + C) + dt * dt * D
-        B2 = B + dt * D
-        C2 = C + dt * D
-        P = np.concatenate([np.concatenate([A2, B2], 2), np.concatenate([C2, D], 2)], 1)
-        # Q = B Σ_a B' per coordinate, Σ_a proportional to the box size
-        w, h = self._wh(slots)
-        sa = (np.stack([w, h, w, h], 1) * self.rel_accel) ** 2
+        A += dt * (B + C)
+        A += dt * dt * D
+        B += dt * D
+        C += dt * D
         q_pp, q_pv, q_vv = dt ** 4 / 4.0, dt ** 3 / 2.0, dt * dt
-        i = np.arange(4)
-        P[:, i, i] += q_pp * sa
-        P[:, i, i + 4] += q_pv * sa
-        P[:, i + 4, i] += q_pv * sa
-        P[:, i + 4, i + 4] += q_vv * sa
+        P[:, _DIAG, _DIAG] += q_pp * sa
+        P[:, _DIAG, _DIAG + 4] += q_pv * sa
+        P[:, _DIAG + 4, _DIAG] += q_pv * sa
+        P[:, _DIAG + 4, _DIAG + 4] += q_vv * sa
         self.x[slots] = x
         self.P[slots] = P
 

@@ -135,15 +135,30 @@ def test_python_api_lbp_and_model_roundtrip(split, tmp_path):
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
+    from artmotion.errors import InputError
+
     names, _, imgs, Y = load_labelled(split / "train", split / "train.csv")
-    reg = PoseRegressor(feature="lbp", method="sparse", n_inducing=80).fit(imgs, Y, names)
+    # the variance from 20 of the 80 inducing inputs: kept by save/load
+    reg = PoseRegressor(feature="lbp", method="sparse", n_inducing=80, n_inducing_var=20).fit(imgs, Y, names)
+    assert len(reg.gp_.var_inducing) == 20 and reg.gp_.M[0].shape == (20, 20)
     m, s = reg.predict(imgs[:10], return_std=True)
     reg.save(tmp_path / "lbp.npz")
     back = PoseRegressor.load(tmp_path / "lbp.npz")
     m2, s2 = back.predict(imgs[:10], return_std=True)
     np.testing.assert_allclose(m, m2, atol=1e-6)
     np.testing.assert_allclose(s, s2, atol=1e-6)
-    assert back.feature == "lbp" and back.names_ == names
+    assert back.feature == "lbp" and back.names_ == names and back.n_inducing_var == 20
+    with np.load(tmp_path / "lbp.npz") as z:
+        d = dict(z)
+    d["var_inducing"] = np.array([0, 0, 5])
+    np.savez(tmp_path / "bad.npz", **d)
+    with pytest.raises(InputError, match="var_inducing"):
+        PoseRegressor.load(tmp_path / "bad.npz")
+    del d["var_inducing"]        # a file from before: the variance from every inducing input
+    np.savez(tmp_path / "old.npz", **d)
+    old = PoseRegressor.load(tmp_path / "old.npz")
+    assert old.gp_.var_inducing is None and old.n_inducing_var is None
+    np.testing.assert_allclose(old.predict(imgs[:10]), m, atol=1e-6)
 
 
 def test_default_model_pca_exact_roundtrip(split, tmp_path):
@@ -193,6 +208,8 @@ def test_bad_inputs(split, run_cli, tmp_path):
     missing.write_text("\n".join(lines[:-1]) + "\n")
     unlabelled = lines[-1].split(",")[0]
     _one_line(*run_cli("pose", "train", split / "test", missing, "--model", tmp_path / "m.npz")[::2], unlabelled)
+    _one_line(*run_cli("pose", "train", split / "test", split / "test.csv", "--model", tmp_path / "m.npz",
+                       "--inducing-var", "-1")[::2], "--inducing-var")
 
     foreign = tmp_path / "foreign.npz"
     np.savez(foreign, X=np.zeros((3, 3)))

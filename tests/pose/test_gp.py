@@ -68,6 +68,29 @@ def test_sparse_with_all_points_inducing_equals_exact():
     np.testing.assert_allclose(s1, s2, atol=2e-3)
 
 
+def test_variance_from_fewer_inducing_inputs_leaves_the_mean_and_costs_less():
+    """``var_inducing``: the same projected-process GP on a subset of the inducing inputs gives
+    the variance (an m_v × m_v matrix per output), the mean is the full set's to the last bit;
+    ``fit_gp(n_inducing_var=...)`` picks that subset without changing the mean's inducing inputs."""
+    rng = np.random.default_rng(4)
+    X = rng.normal(size=(300, 3))
+    Y = np.stack([np.sin(X[:, 0]), X[:, 1] * X[:, 2]], 1) + 0.05 * rng.normal(size=(300, 2))
+    hs = [Hyper(1.2, 1.0, 0.01), Hyper(0.8, 1.5, 0.02)]
+    ind = choose_inducing(X, 60, rng)
+    full = SparseGP(X, Y, hs, np.zeros(2), np.ones(2), ind)
+    sub = SparseGP(X, Y, hs, np.zeros(2), np.ones(2), ind, np.arange(0, 60, 4))
+    small = SparseGP(X, Y, hs, np.zeros(2), np.ones(2), ind[::4])  # the subset alone
+    Xs = rng.normal(size=(50, 3))
+    (m1, s1), (m2, s2), (_, s3) = full.predict(Xs, True), sub.predict(Xs, True), small.predict(Xs, True)
+    assert np.array_equal(m1, m2) and sub.M[0].shape == (15, 15)
+    np.testing.assert_allclose(s2, s3, rtol=1e-4)      # the subset's own variance
+    assert not np.allclose(s1, s2, rtol=1e-3)
+    a = fit_gp(X, Y, method="sparse", n_inducing=40, n_opt=100, restarts=1)
+    b = fit_gp(X, Y, method="sparse", n_inducing=40, n_opt=100, restarts=1, n_inducing_var=10)
+    assert a.var_inducing is None and len(b.var_inducing) == 10 and np.array_equal(a.inducing, b.inducing)
+    assert np.array_equal(a.predict(Xs), b.predict(Xs))
+
+
 def test_nlml_gradient_matches_finite_differences():
     rng = np.random.default_rng(3)
     X = rng.normal(size=(25, 2))

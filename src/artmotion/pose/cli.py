@@ -71,6 +71,8 @@ def train_cmd(
         "none, boxes.csv). Repeatable; the variance is calibrated on the end of every sequence.")),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
+    inducing_var: int = typer.Option(250, "--inducing-var", help=(
+        "The sparse GP's variance from this many of its inducing points (0 = all: slower per frame).")),
     components: int = typer.Option(128, "--components", help="Principal components of the feature (0 = raw feature)."),
     steps: int = typer.Option(3000, "--steps", help="cnn: training mini-batches of 64 crops."),
     seed: int = typer.Option(0, "--seed"),
@@ -104,10 +106,12 @@ def train_cmd(
     check_writable(model, inputs=[f for _, lab, b in seqs for f in (lab, b)])
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
+    check_range("--inducing-var", inducing_var, 0, 1_000_000, integer=True)
     check_range("--steps", steps, 1, 1_000_000, integer=True)
     check_seed(seed)
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
-                        seed=seed, progress=True, net_steps=steps)  # checks feature and method before any image is read
+                        seed=seed, progress=True, net_steps=steps,
+                        n_inducing_var=inducing_var or None)  # checks feature and method before any image is read
     names: list[str] = []
     imgs: list = []
     Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)

@@ -16,6 +16,8 @@ Only this module imports torch (the ``tools`` extra); the HOG and LBP models do 
 from __future__ import annotations
 
 import math
+import weakref
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -194,10 +196,44 @@ def from_arrays(arrays: dict[str, np.ndarray], k: int, size: tuple[int, int]) ->
     return net.eval()
 
 
+#: each trained network's layers for :func:`embed`, folded once (see :func:`_folded`)
+_FOLDED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _folded(net: CropNet) -> Callable[[torch.Tensor, torch.Tensor | None], torch.Tensor]:
+    """:meth:`CropNet.features` in eval mode as one function: each convolution with its batch
+    normalisation folded into its weights and bias (``torch.nn.utils.fusion``; the same numbers
+    up to float rounding, 5e-7 on features of size ~3) and no module dispatch, which is most of
+    the cost of one crop (0.50 -> 0.36 ms). Built on the first call for a network and kept: a
+    network is embedded only once trained (:func:`fit_net`, :func:`from_arrays` give new ones)."""
+    fn = _FOLDED.get(net)
+    if fn is None:
+        from torch.nn.utils.fusion import fuse_conv_bn_eval
+
+        pairs = [(block[0], block[1]) for block in net.body if isinstance(block, nn.Sequential)]
+        convs = [fuse_conv_bn_eval(c, bn) for c, bn in pairs
+                 if isinstance(c, nn.Conv2d) and isinstance(bn, nn.BatchNorm2d)]
+        layers = [(c.weight.detach(), None if c.bias is None else c.bias.detach()) for c in convs]
+        lin = net.embed[0]
+        assert isinstance(lin, nn.Linear) and len(layers) == 4  # the layers of CropNet
+        w_lin, b_lin = lin.weight.detach(), lin.bias.detach()
+
+        def fn(x: torch.Tensor, e: torch.Tensor | None) -> torch.Tensor:
+            for w, b in layers:
+                x = torch.relu_(nn.functional.conv2d(x, w, b, stride=2, padding=1))
+            x = x.flatten(1)
+            return torch.relu_(nn.functional.linear(x if e is None else torch.cat([x, e], 1), w_lin, b_lin))
+
+        _FOLDED[net] = fn
+    return fn
+
+
 @torch.inference_mode()
 def embed(net: CropNet, crops: np.ndarray, extra: np.ndarray | None = None, batch: int = 512) -> np.ndarray:
-    """``(n, dim)`` features of ``(n, h, w, 3)`` float crops (and their ``extra`` inputs)."""
+    """``(n, dim)`` features of ``(n, h, w, 3)`` float crops (and their ``extra`` inputs), by the
+    trained network ``net`` in eval mode."""
     E = None if extra is None else torch.from_numpy(extra.astype(np.float32))
-    parts = [net.features(torch.from_numpy(standardise(crops[s : s + batch])), None if E is None else E[s : s + batch]).numpy()
+    features = _folded(net)
+    parts = [features(torch.from_numpy(standardise(crops[s : s + batch])), None if E is None else E[s : s + batch]).numpy()
              for s in range(0, len(crops), batch)]
     return np.concatenate(parts) if parts else np.empty((0, net.head.in_features), np.float32)

@@ -204,36 +204,41 @@ class SparseGP(_BaseGP):
     With ``Kmm = L_m L_m^T``, ``V = L_m^-1 Kmn`` and ``A = s_n^2 I + V V^T``:
     mean ``= k*^T c`` with ``c = L_m^-T A^-1 V y``; latent variance
     ``= s_f^2 - |L_m^-1 k*|^2 + s_n^2 |A^-1/2 L_m^-1 k*|^2 = s_f^2 + k*^T M k*``.
+
+    ``var_inducing``: positions in ``inducing`` of a smaller set for the variance (the same model
+    with those inducing inputs only: ``M`` is ``m_v × m_v``, a query's variance costs ``m_v²``
+    instead of ``m²``); the mean is unchanged. Its variance is another approximation of the same
+    GP's (mostly wider: fewer inducing inputs explain less of a query; in places narrower), and the
+    calibration (:func:`fit_gp`) scales it to the errors on held-out rows like the full one.
     """
 
     kind = "sparse"
 
-    def __init__(self, X: np.ndarray, Ys: np.ndarray, hypers, y_mean, y_std, inducing: np.ndarray):
+    def __init__(self, X: np.ndarray, Ys: np.ndarray, hypers, y_mean, y_std, inducing: np.ndarray,
+                 var_inducing: np.ndarray | None = None):
         super().__init__(hypers, y_mean, y_std)
         X = np.asarray(X, dtype=np.float64)
         self.X = X.astype(np.float32)
         self.Ys = np.asarray(Ys, dtype=np.float64)
         self.inducing = np.asarray(inducing, dtype=np.int64)
+        #: positions (in ``inducing``) of the smaller set the variance is computed from, or None:
+        #: the same set as the mean's (the variance costs O(m²) per query and output, the mean O(m))
+        self.var_inducing = None if var_inducing is None else np.asarray(var_inducing, dtype=np.int64)
         self.Z = np.ascontiguousarray(X[self.inducing])
         self.Z2 = (self.Z * self.Z).sum(1)
         self._Z32 = self.Z.astype(np.float32)
         self._Z2_32 = self.Z2.astype(np.float32)
-        m = len(self.Z)
         Dmm = sqdist(self.Z, self.Z, self.Z2, self.Z2)
         Dmn = sqdist(self.Z, X, self.Z2)
+        v = self.var_inducing
         cs: list[np.ndarray] = []
         self.M: list[np.ndarray] = []
         for k, h in enumerate(hypers):
-            Kmm = se_kernel(Dmm, h.length, h.sf2)
-            Kmm[np.diag_indices(m)] += 1e-6 * h.sf2
-            Lm = np.linalg.cholesky(Kmm)
-            V = solve_triangular(Lm, se_kernel(Dmn, h.length, h.sf2), lower=True, check_finite=False)
-            A = V @ V.T
-            A[np.diag_indices(m)] += h.sn2
-            La = np.linalg.cholesky(A)
+            V, La, Pinv = _dtc(Dmm, Dmn, h)
             beta = cho_solve((La, True), V @ Ys[:, k], check_finite=False)
-            Pinv = solve_triangular(Lm, np.eye(m), lower=True, check_finite=False)  # L_m^-1
             cs.append(Pinv.T @ beta)
+            if v is not None:  # the same model on the smaller set, for the variance only
+                _, La, Pinv = _dtc(Dmm[np.ix_(v, v)], Dmn[v], h)
             G = solve_triangular(La, Pinv, lower=True, check_finite=False)  # A^-1/2 L_m^-1
             self.M.append((h.sn2 * (G.T @ G) - Pinv.T @ Pinv).astype(np.float32))
         self.c = np.stack(cs, axis=1)
@@ -247,9 +252,26 @@ class SparseGP(_BaseGP):
             Ks = se_kernel(D2, h.length, h.sf2)  # float32
             mu[:, k] = Ks @ self.c[:, k]
             if return_std:
-                q = ((Ks @ self.M[k]) * Ks).sum(1, dtype=np.float64)
+                Kv = Ks if self.var_inducing is None else Ks[:, self.var_inducing]
+                q = ((Kv @ self.M[k]) * Kv).sum(1, dtype=np.float64)
                 var[:, k] = np.maximum(h.sf2 + q, 1e-6 * h.sf2) + h.sn2
         return self._finish(mu, var, return_std)
+
+
+def _dtc(Dmm: np.ndarray, Dmn: np.ndarray, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The factors of a projected-process GP with hyper-parameters ``h`` from the squared distances
+    among the inducing inputs and to the training inputs: ``V = L_m^-1 Kmn``, the Cholesky factor
+    of ``A = s_n^2 I + V V^T`` and ``L_m^-1`` (see :class:`SparseGP`)."""
+    m = len(Dmm)
+    Kmm = se_kernel(Dmm, h.length, h.sf2)
+    Kmm[np.diag_indices(m)] += 1e-6 * h.sf2
+    Lm = np.linalg.cholesky(Kmm)
+    V = solve_triangular(Lm, se_kernel(Dmn, h.length, h.sf2), lower=True, check_finite=False)
+    A = V @ V.T
+    A[np.diag_indices(m)] += h.sn2
+    La = np.linalg.cholesky(A)
+    Pinv = solve_triangular(Lm, np.eye(m), lower=True, check_finite=False)  # L_m^-1
+    return V, La, Pinv
 
 
 def choose_inducing(X: np.ndarray, m: int, rng: np.random.Generator, how: str = "kmeans",
@@ -313,6 +335,7 @@ def fit_gp(
     calibrate: float = 0.2,
     inducing: str = "kmeans",
     neighbours: int | None = None,
+    n_inducing_var: int | None = None,
 ):
     """Fit one GP per column of ``Y``: hyper-parameters on a subset of ``n_opt``, then one full solve.
 
@@ -331,6 +354,8 @@ def fit_gp(
     ``inducing``: how the sparse GP picks its inducing inputs, ``"kmeans"`` (default) or
     ``"random"`` (see :func:`choose_inducing`). ``neighbours``: the exact GP's variance from that
     many nearest training inputs (None: the exact ``O(n^2)`` variance; see :class:`ExactGP`).
+    ``n_inducing_var``: the sparse GP's variance from that many of its inducing inputs (chosen
+    among them the same way; None: all of them; see :class:`SparseGP`).
     """
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64).reshape(len(X), -1)
@@ -356,7 +381,11 @@ def fit_gp(
         if method == "exact":
             return ExactGP(Xb, Yb, hypers, np.zeros(Yb.shape[1]), np.ones(Yb.shape[1]), neighbours)
         ind = choose_inducing(Xb, n_inducing, rng, inducing)
-        return SparseGP(Xb, Yb, hypers, np.zeros(Yb.shape[1]), np.ones(Yb.shape[1]), ind)
+        var = None
+        if n_inducing_var is not None and n_inducing_var < len(ind):
+            # its own generator: the mean's inducing inputs stay those chosen without it
+            var = choose_inducing(Xb[ind], n_inducing_var, np.random.default_rng([seed, 1]), inducing)
+        return SparseGP(Xb, Yb, hypers, np.zeros(Yb.shape[1]), np.ones(Yb.shape[1]), ind, var)
 
     scale = np.ones(Y.shape[1])
     n_cal = int(round(n * (1 - calibrate))) if calibrate else n

@@ -207,3 +207,26 @@ def test_cli_trains_on_several_sequences(rendered, run_cli, tmp_path):
                              "--set", root / "test", "--model", tmp_path / "x.npz")
     assert code == 2 and "differ from the first sequence's" in err and err.count("\n") == 1, err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_training_is_repeatable_and_gives_the_threads_back():
+    """fit_net augments the next mini-batches on a worker thread and trains on one torch thread:
+    the same seed gives the same weights, the embedding uses the folded layers (equal to the
+    modules' eval-mode features), and torch's thread count is restored, also after an error."""
+    import torch
+
+    from artmotion.pose import cnn
+
+    rng = np.random.default_rng(0)
+    crops, Y = rng.random((40, 48, 64, 3), dtype=np.float32), rng.normal(size=(40, 2))
+    before = torch.get_num_threads()
+    a, b = cnn.fit_net(crops, Y, steps=6, batch=8), cnn.fit_net(crops, Y, steps=6, batch=8)
+    assert torch.get_num_threads() == before
+    for p, q in zip(a.parameters(), b.parameters()):
+        assert torch.equal(p, q)
+    with torch.inference_mode():
+        direct = a.features(torch.from_numpy(cnn.standardise(crops))).numpy()
+    np.testing.assert_allclose(cnn.embed(a, crops), direct, atol=1e-5)
+    with pytest.raises(ValueError):
+        cnn.fit_net(crops[:, :, :, :2], Y, steps=2, batch=8)   # two channels: fails while training
+    assert torch.get_num_threads() == before

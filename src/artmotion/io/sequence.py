@@ -87,7 +87,7 @@ class Sequence:
         if prefetch <= 0:
             yield from self._read(reduce)
             return
-        yield from _prefetched(self._read(reduce), prefetch)
+        yield from prefetched(self._read(reduce), prefetch)
 
     def _read(self, reduce: int = 1) -> Generator[tuple[int, np.ndarray], None, None]:
         want = (-(-self.height // reduce), -(-self.width // reduce))
@@ -142,8 +142,10 @@ _REDUCED = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_RE
 _DONE = object()
 
 
-def _prefetched(items: Iterator, depth: int) -> Iterator:
-    """Iterate ``items`` in a daemon thread, ``depth`` ahead; its exceptions re-raise here."""
+def prefetched(items: Iterator, depth: int) -> Iterator:
+    """Iterate ``items`` in a daemon thread, ``depth`` ahead; its exceptions re-raise here. The
+    items are made in their own order by one thread, so a random generator they draw from is
+    drawn in the same order as without the thread."""
     q: queue.Queue = queue.Queue(maxsize=depth)
     stop = threading.Event()
 

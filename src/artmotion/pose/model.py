@@ -500,6 +500,11 @@ def _array(d: dict, key: str, shape: tuple, kind: str = "f") -> np.ndarray:
     return a
 
 
+def _distinct_indices(a: np.ndarray, n: int) -> bool:
+    """Whether the non-empty integer array ``a`` holds distinct indices into ``n`` items."""
+    return bool(a.min() >= 0 and a.max() < n and len(np.unique(a)) == len(a))
+
+
 #: prefix of the network's weights in a ``cnn`` model file
 _NET = "net:"
 
@@ -585,12 +590,11 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
         reg.gp_ = ExactGP(X, Ys, hyp, y_mean, y_std, reg.neighbours, alpha)
     else:
         inducing = _array(d, "inducing", (None,), "i")
-        if not len(inducing) or inducing.min() < 0 or inducing.max() >= n or len(np.unique(inducing)) != len(inducing):
+        if not len(inducing) or not _distinct_indices(inducing, n):
             raise InputError("'inducing' are not distinct indices of training inputs")
         # the variance's own inducing inputs (positions among those): absent or empty, the same set
         var_ind = _array(d, "var_inducing", (None,), "i") if "var_inducing" in d else np.zeros(0, np.int64)
-        if len(var_ind) and (var_ind.min() < 0 or var_ind.max() >= len(inducing)
-                             or len(np.unique(var_ind)) != len(var_ind)):
+        if len(var_ind) and not _distinct_indices(var_ind, len(inducing)):
             raise InputError("'var_inducing' are not distinct positions among the inducing inputs")
         reg.gp_ = SparseGP(X, Ys, hyp, y_mean, y_std, inducing, var_ind if len(var_ind) else None)
         reg.n_inducing, reg.n_inducing_var = len(inducing), len(var_ind) or None

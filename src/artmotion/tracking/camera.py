@@ -156,7 +156,7 @@ class CameraMotion:
                     self._ref, self._ref_n, self._ref_boxes = grey, self._n, ex
         elif self._ref is None:
             self._ref, self._ref_n, self._ref_boxes = grey, self._n, ex
-        elif self._n - self._ref_n >= self.check:
+        else:  # a still camera's check (between two checks it returned above)
             # corners are taken in the reference image: leave out where the people were then;
             # over several frames a walking camera's parallax leaves fewer points on one
             # similarity than from frame to frame (ETH-Sunnyday: 22-50 % against 65-84 %)

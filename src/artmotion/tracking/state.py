@@ -110,9 +110,11 @@ class KalmanBank:
         self.free.append(slot)
 
     # ------------------------------------------------------------------ filter steps
-    def _wh(self, slots) -> tuple[np.ndarray, np.ndarray]:
-        wh = np.maximum(self.x[slots, 2:4], 1.0)
-        return wh[:, 0], wh[:, 1]
+    @staticmethod
+    def _sizes(x: np.ndarray) -> np.ndarray:
+        """``(N, 4)`` box sizes ``w, h, w, h`` (at least 1 pixel) of states ``x``: the scale of
+        each coordinate's noise."""
+        return np.maximum(x[:, 2:4], 1.0)[:, [0, 1, 0, 1]]
 
     def predict(self, slots, dt: float) -> None:
         """One time step of ``dt`` seconds for the filters in ``slots`` (Eq. 2.10)."""
@@ -121,7 +123,7 @@ class KalmanBank:
             return
         x, P = self.x[slots], self.P[slots]
         # Q = B Σ_a B' per coordinate, Σ_a proportional to the box size (before the step)
-        sa = (np.maximum(x[:, 2:4], 1.0)[:, [0, 1, 0, 1]] * self.rel_accel) ** 2
+        sa = (self._sizes(x) * self.rel_accel) ** 2
         x[:, :4] += dt * x[:, 4:]
         # P <- F P F' with F = [[I, dt I], [0, I]], by blocks (in place: P is a copy)
         A, B, C, D = P[:, :4, :4], P[:, :4, 4:], P[:, 4:, :4], P[:, 4:, 4:]
@@ -139,8 +141,7 @@ class KalmanBank:
 
     def R(self, slots) -> np.ndarray:
         """Measurement noise ``(N, 4)`` variances of the filters' detections."""
-        w, h = self._wh(slots)
-        return (np.stack([w, h, w, h], 1) * self.rel_sd) ** 2
+        return (self._sizes(self.x[slots]) * self.rel_sd) ** 2
 
     def update(self, slots, boxes, R=None) -> None:
         """Kalman update of ``slots`` with measured ``boxes`` (``x, y, w, h``); ``R`` optional

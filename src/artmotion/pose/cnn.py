@@ -136,11 +136,14 @@ def target_scale(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64, seed: int = 0, width: int = 16,
             dim: int = DIM, extra: np.ndarray | None = None, augmented: bool = True, weights: np.ndarray | None = None,
-            progress: bool = False) -> CropNet:
+            progress: bool = False, beta: float = 0.05) -> CropNet:
     """Train :class:`CropNet` on ``(n, h, w, 3)`` float crops and angles ``Y`` (n, k), standardised
     here, for ``steps`` mini-batches of augmented crops (the cost does not grow with n); ``extra``
     ``(n, e)``: inputs joined to the convolutional features (where the box lies in its frame);
-    ``weights`` ``(k,)``: each angle's weight in the loss (default equal)."""
+    ``weights`` ``(k,)``: each angle's weight in the loss (default equal); ``beta``: the smooth L1
+    loss's quadratic zone in standard deviations (0.05: nearly the absolute error, whose minimiser is
+    the median, where a wide zone gives the mean; on frames that look alike for several openings the
+    median errs less on average: docs/pose.md)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     mu, sd = target_scale(Y)
@@ -179,7 +182,7 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
         for idx, xb in prefetched(batches(), 2):
             x = torch.from_numpy(xb).contiguous(memory_format=torch.channels_last)
             loss = nn.functional.smooth_l1_loss(net(x, None if E is None else E[idx]), T[idx],
-                                                beta=0.5, reduction="none")
+                                                beta=beta, reduction="none")
             loss = (loss * W).sum(1).mean()
             opt.zero_grad()
             loss.backward()

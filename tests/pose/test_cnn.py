@@ -81,11 +81,13 @@ def test_cnn_model_learns_pose_round_trips_and_needs_its_views(rendered, tmp_pat
     root, data = rendered
     names, imgs, Y, V = data["train"]
     _, timgs, tY, tV = data["test"]
-    reg = PoseRegressor(feature="cnn", net_steps=150).fit(imgs, Y, names, views=V)
+    reg = PoseRegressor(feature="cnn", net_steps=600).fit(imgs, Y, names, views=V)
     assert reg.uses_views_
     mean, std = reg.predict(timgs, return_std=True, views=tV)
     assert mean.shape == tY.shape and np.all(std > 0)
-    # after a few seconds of training on 300 crops, the stem's direction (yaw, pitch) is far better
+    # after a few seconds of training on 300 crops (600 steps: the nearly absolute loss learns more
+    # slowly at first than a squared one; 150 and 300 steps left pitch at 0.71x and 0.81x, 600 at
+    # 0.62x here), the stem's direction (yaw, pitch) is far better
     # than knowing only the training set's mean pose, and no angle is much worse (so short a training
     # run differs by a few per cent between CPUs: roll 0.93x to 1.03x the mean pose's error)
     err = np.abs(mean - tY).mean(0)

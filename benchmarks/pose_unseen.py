@@ -34,7 +34,6 @@ docs/pose_unseen.json.
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import pickle
 import sys
@@ -49,7 +48,6 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _docs import replace_block  # noqa: E402
 
-from artmotion.pose import cnn  # noqa: E402
 from artmotion.pose.data import load_labelled, read_views  # noqa: E402
 from artmotion.pose.evaluate import Columns, cross_validate, errors, summary  # noqa: E402
 from artmotion.pose.model import PoseRegressor  # noqa: E402
@@ -80,7 +78,8 @@ def load(out: Path, name: str):
     n, seed, dark, motion, scenes, style = RENDERS[name]
     want = {"poses": n, "seed": seed, "motion": motion, "scenes": scenes, "style": style, "dark": dark}
     meta = d / "rendering.json"
-    if not meta.exists() or any(json.loads(meta.read_text()).get(k) != v for k, v in want.items()):
+    have = json.loads(meta.read_text()) if meta.exists() else {}
+    if any(have.get(k) != v for k, v in want.items()):
         print(f"rendering {d} ...", flush=True)
         write_dataset(d, n, seed, dark, frames=True, motion=motion, scenes=scenes, style=style)
     names, paths, imgs, Y = load_labelled(d / "crops", d / "labels.csv")
@@ -183,12 +182,7 @@ def main(argv=None):
     train("cnn without views", "cnn", imgs, Y, tr_G=G)
     train("cnn without augmentation", "cnn", imgs, Y, V, G, augment=False)
     train("cnn, opening weight 1 (not 3)", "cnn", imgs, Y, V, G, opening_weight=1.0)
-    fit_net = cnn.fit_net
-    cnn.fit_net = functools.partial(fit_net, beta=0.5)  # the loss before (PoseRegressor has no option for it)
-    try:
-        train("cnn, smooth L1 loss with β = 0.5 (the loss before; not 0.05)", "cnn", imgs, Y, V, G)
-    finally:
-        cnn.fit_net = fit_net
+    train("cnn, smooth L1 loss with β = 0.5 (the loss before; not 0.05)", "cnn", imgs, Y, V, G, net_beta=0.5)
     train("cnn + views, five sets, variance calibrated on the last set only", "cnn", imgs, Y, V)
     train("cnn, cover set only", "cnn", data["cover"][1], data["cover"][2], data["cover"][3])
     train("cnn, script set only", "cnn", data["normal"][1], data["normal"][2], data["normal"][3])

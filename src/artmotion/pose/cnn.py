@@ -9,8 +9,8 @@ blur, noise, specular glints, box jitter, occluding bars): what it learns is pos
 appearance. Its last hidden layer is the feature the GP (Eq. 3.1-3.5) regresses the angles on,
 so the prediction keeps the GP's variance (the thesis' reason for a GP).
 
-No downloaded weights: the network is trained here, in 1 to 2.5 minutes on two CPU cores by the CPU
-(3000 mini-batches).
+No downloaded weights: the network is trained here (3000 mini-batches): 1 to 2.5 minutes on two
+CPU cores, depending on the CPU.
 Only this module imports torch (the ``tools`` extra); the HOG and LBP models do not need it.
 """
 
@@ -141,9 +141,8 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
     here, for ``steps`` mini-batches of augmented crops (the cost does not grow with n); ``extra``
     ``(n, e)``: inputs joined to the convolutional features (where the box lies in its frame);
     ``weights`` ``(k,)``: each angle's weight in the loss (default equal); ``beta``: the smooth L1
-    loss's quadratic zone in standard deviations (0.05: nearly the absolute error, whose minimiser is
-    the median, where a wide zone gives the mean; on frames that look alike for several openings the
-    median errs less on average: docs/pose.md)."""
+    loss's quadratic zone in standard deviations (:class:`~artmotion.pose.model.PoseRegressor`'s
+    ``net_beta``)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     mu, sd = target_scale(Y)

@@ -166,21 +166,22 @@ class PoseRegressor:
     (``cnn``: appearance augmentation while training), ``opening_weight`` (``cnn``: the loss
     weight of angles whose name contains "open", the jaw angle, against 1 for the others: the
     jaws are small in the crop and their look depends on the roll; 3 takes 8 % off its error on
-    unseen motion, docs/pose.md), ``net_mean`` (``cnn``: which angles take the network's own
-    read-out of its feature as their mean, the GP giving their variance: ``"opening"`` (the
-    default), ``"all"`` or ``"none"``. Away from its training crops a GP's mean falls back to the
-    training mean, which pulls a wide-open or closed jaw towards half-open; the read-out
-    extrapolates. Chosen on one unseen sequence and checked on four more, docs/pose.md),
-    ``n_components`` (the features are
-    projected on their first principal components before the GP; ``None`` keeps the raw
-    feature), ``method`` (``"auto"``, ``"exact"``, ``"sparse"``), ``max_exact`` (``auto``
-    switches to the sparse GP above this many training examples), ``neighbours`` (the exact GP's
-    variance from this many nearest training crops; ``None``: the exact ``O(n^2)`` variance),
-    ``n_inducing`` (sparse GP), ``n_inducing_var`` (the sparse GP's variance from that many of
-    its inducing inputs, a frame's variance 16× cheaper at 250 of 1000; ``None``: all of them),
-    ``n_opt`` (subset used for hyper-parameter optimisation),
-    ``restarts``, ``seed``, ``progress`` (tqdm bars), ``inducing`` (``"kmeans"`` or ``"random"``
-    choice of the sparse GP's inducing inputs).
+    unseen motion, docs/pose.md), ``net_beta`` (``cnn``: the smooth L1 loss's quadratic zone in
+    standard deviations of each angle; 0.05, nearly the absolute error, learns the median, which
+    errs less on average than the mean a wide zone learns, docs/pose.md), ``net_mean`` (``cnn``:
+    which angles take the network's own read-out of its feature as their mean, the GP giving
+    their variance: ``"opening"`` (the default), ``"all"`` or ``"none"``. Away from its training
+    crops a GP's mean falls back to the training mean, which pulls a wide-open or closed jaw
+    towards half-open; the read-out extrapolates. Chosen on one unseen sequence and checked on
+    four more, docs/pose.md), ``n_components`` (the features are projected on their first
+    principal components before the GP; ``None`` keeps the raw feature), ``method`` (``"auto"``,
+    ``"exact"``, ``"sparse"``), ``max_exact`` (``auto`` switches to the sparse GP above this many
+    training examples), ``neighbours`` (the exact GP's variance from this many nearest training
+    crops; ``None``: the exact ``O(n^2)`` variance), ``n_inducing`` (sparse GP),
+    ``n_inducing_var`` (the sparse GP's variance from that many of its inducing inputs, a frame's
+    variance 16× cheaper at 250 of 1000; ``None``: all of them), ``n_opt`` (subset used for
+    hyper-parameter optimisation), ``restarts``, ``seed``, ``progress`` (tqdm bars), ``inducing``
+    (``"kmeans"`` or ``"random"`` choice of the sparse GP's inducing inputs).
     """
 
     def __init__(self, feature: str = "hog", cell: int | None = None, size: tuple[int, int] = (F.CROP_W, F.CROP_H),
@@ -188,7 +189,7 @@ class PoseRegressor:
                  neighbours: int | None = 16, n_inducing: int = 1000, n_opt: int = 500, restarts: int = 1,
                  seed: int = 0, progress: bool = False, inducing: str = "kmeans", net_steps: int = 3000,
                  augment: bool = True, opening_weight: float = 3.0, net_mean: str = "opening",
-                 n_inducing_var: int | None = 250):
+                 n_inducing_var: int | None = 250, net_beta: float = 0.05):
         if feature not in F.FEATURES:
             raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
         if method not in ("auto", "exact", "sparse"):
@@ -203,6 +204,7 @@ class PoseRegressor:
         self.net_steps = net_steps
         self.augment = augment
         self.opening_weight = opening_weight
+        self.net_beta = net_beta
         self.net_mean = net_mean
         self.net_: Any = None  # artmotion.pose.cnn.CropNet once a cnn model is fitted
         #: angles whose mean is the network's read-out, and its scale back to degrees (``cnn``)
@@ -300,7 +302,8 @@ class PoseRegressor:
             crops = np.asarray(X[:m] if in_order else X[rows], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
             weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
             self.net_ = cnn.fit_net(crops, Y[rows], self.net_steps, seed=self.seed, extra=None if V is None else V[rows],
-                                    augmented=self.augment, weights=np.array(weights), progress=self.progress)
+                                    augmented=self.augment, weights=np.array(weights), progress=self.progress,
+                                    beta=self.net_beta)
             self.net_mu_, self.net_sd_ = cnn.target_scale(Y[rows])
             self.readout_ = np.array([self.net_mean == "all" or (self.net_mean == "opening" and is_opening(n))
                                       for n in self.names_])

@@ -13,7 +13,8 @@ and place with seeds 1 and 2, each in normal light and dark (``--dark``: the sam
 light). Then, every model trained on the training crops only:
 
 * unseen sequences: HOG (the thesis' model on the script set, and on the pooled sets) and cnn
-  (the recipe: all five sets, with the boxes' places in their frames); raw and Kalman-filtered;
+  (the recipe: all five sets, with the boxes' places in their frames); raw, Kalman-filtered and
+  smoothed (forward and back);
   ±3σ coverage;
 * protocols side by side on the recipe's 20,000 crops: random 5-fold (the thesis), contiguous 5-fold;
 * learning curve: the cnn model on 1000-20,000 training crops (evenly spaced rows of the five sets);
@@ -92,10 +93,11 @@ def score(reg, data, cols, names, views: bool) -> dict:
     for k in UNSEEN:
         _, imgs, Y, V = data[k]
         m, s = reg.predict(imgs, return_std=True, views=V if views else None)
-        fm, _ = reg.make_filter().filter(m, s)
-        res[k] = summary(Y, m, s, fm, cols, names)
+        kf = reg.make_filter()
+        res[k] = summary(Y, m, s, kf.filter(m, s)[0], cols, names, smooth=kf.smooth(m, s))
         res[k]["pred"] = m
-    for q in ("orientation", "opening", "orientation filtered", "opening filtered", "all in 3sd", "opening in 3sd"):
+    for q in ("orientation", "opening", "orientation filtered", "opening filtered", "orientation smoothed",
+              "opening smoothed", "all in 3sd", "opening in 3sd", "all in 3sd smoothed"):
         res[f"mean {q}"] = float(np.mean([res[k][q] for k in UNSEEN]))
     for q in ("orientation", "opening"):
         res[f"dark/normal {q}"] = float(np.mean([res[d][q] / res[t][q] for t, d in (("test", "dark"), ("test2", "dark2"))]))
@@ -160,17 +162,19 @@ def main(argv=None):
     cnn_reg, _ = train(RECIPE_LABEL, "cnn", imgs, Y, V, G)
     say("#### Unseen sequences (trained on rendered sets only; mean error in degrees, orientation / opening)")
     say()
-    say("| model | n | seq 1 | seq 1 dark | seq 2 | seq 2 dark | **mean** | mean, Kalman-filtered | dark / normal | "
-        "opening in ±3σ | all 4 in ±3σ |")
-    say("|---|---|---|---|---|---|---|---|---|---|---|")
+    say("| model | n | seq 1 | seq 1 dark | seq 2 | seq 2 dark | **mean** | mean, Kalman-filtered | mean, smoothed | "
+        "dark / normal | opening in ±3σ | all 4 in ±3σ | smoothed: all 4 in ±3σ |")
+    say("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
     def row(label):
         r = results[label]
         cells = " | ".join(f"{r[k]['orientation']:.2f} / {r[k]['opening']:.2f}" for k in UNSEEN)
         say(f"| {label} | {r['n']} | {cells} | **{r['mean orientation']:.2f} / {r['mean opening']:.2f}** | "
             f"{r['mean orientation filtered']:.2f} / {r['mean opening filtered']:.2f} | "
+            f"{r['mean orientation smoothed']:.2f} / {r['mean opening smoothed']:.2f} | "
             f"{r['dark/normal orientation']:.2f}× / {r['dark/normal opening']:.2f}× | "
-            f"{100 * r['mean opening in 3sd']:.1f} % | {100 * r['mean all in 3sd']:.1f} % |")
+            f"{100 * r['mean opening in 3sd']:.1f} % | {100 * r['mean all in 3sd']:.1f} % | "
+            f"{100 * r['mean all in 3sd smoothed']:.1f} % |")
 
     for label in list(results):
         row(label)

@@ -163,6 +163,7 @@ def test_python_api_lbp_and_model_roundtrip(split, tmp_path):
 
 def test_default_model_pca_exact_roundtrip(split, tmp_path):
     """The default regressor (HOG, PCA, exact GP mean, local variance) survives save/load."""
+    from artmotion.errors import InputError
     from artmotion.pose.data import load_labelled
     from artmotion.pose.model import PoseRegressor
 
@@ -176,6 +177,22 @@ def test_default_model_pca_exact_roundtrip(split, tmp_path):
     m2, s2 = back.predict(imgs[:10], return_std=True)
     np.testing.assert_allclose(m, m2, atol=1e-4)
     np.testing.assert_allclose(s, s2, rtol=1e-4)
+    # the filter tuned on the calibration rows (tune_filter) is kept; a file from before has none
+    assert np.all(reg.smooth_std_ >= 1) and np.all(reg.filter_std_ >= 1)
+    for a, b in ((reg.accel_var_, back.accel_var_), (reg.filter_std_, back.filter_std_),
+                 (reg.smooth_std_, back.smooth_std_)):
+        np.testing.assert_allclose(a, b)
+    np.testing.assert_allclose(reg.make_filter().smooth(m, s), back.make_filter().smooth(m2, s2), rtol=1e-3)
+    with np.load(tmp_path / "hog.npz") as z:
+        d = dict(z)
+    d["smooth_std"] = np.full(len(names), 0.5)
+    np.savez(tmp_path / "bad.npz", **d)
+    with pytest.raises(InputError, match="smooth_std"):
+        PoseRegressor.load(tmp_path / "bad.npz")
+    del d["smooth_std"], d["filter_std"]
+    np.savez(tmp_path / "old.npz", **d)
+    old = PoseRegressor.load(tmp_path / "old.npz")
+    assert np.all(old.smooth_std_ == 1) and np.all(old.filter_std_ == 1)
 
 
 def _one_line(code, err, needle):

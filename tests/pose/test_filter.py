@@ -66,3 +66,82 @@ def test_accel_variance_of_white_noise_acceleration():
     keep = np.sort(np.random.default_rng(3).choice(len(x), size=16000, replace=False))
     assert abs(accel_variance(x[keep, None], frames=keep)[0] - q) < 0.06
     assert accel_variance(x[keep, None])[0] > 3 * q  # ignoring the gaps inflates it
+
+
+def _reference_rts(z, r, q):
+    """The forward recursion of :func:`_reference_kf`, then the Rauch-Tung-Striebel pass backward,
+    written out by hand."""
+    F = np.array([[1.0, 1.0], [0.0, 1.0]])
+    Q = np.array([[0.25, 0.5], [0.5, 1.0]]) * q
+    x, P = np.array([z[0], 0.0]), np.diag([r[0], max(r[0], q) * 10])
+    xs, Ps = [x], [P]
+    for t in range(1, len(z)):
+        x, P = F @ x, F @ P @ F.T + Q
+        K = P[:, 0] / (P[0, 0] + r[t])
+        x, P = x + K * (z[t] - x[0]), P - np.outer(K, P[0, :])
+        xs.append(x)
+        Ps.append(P)
+    out = [xs[-1][0]]
+    x, P = xs[-1], Ps[-1]
+    for t in range(len(z) - 2, -1, -1):
+        Pp = F @ Ps[t] @ F.T + Q
+        G = Ps[t] @ F.T @ np.linalg.inv(Pp)
+        x, P = xs[t] + G @ (x - F @ xs[t]), Ps[t] + G @ (P - Pp) @ G.T
+        out.append(x[0])
+    return np.array(out[::-1])
+
+
+def test_smoother_matches_reference_and_beats_the_filter():
+    rng = np.random.default_rng(3)
+    n, q = 400, 0.01
+    pos = np.cumsum(np.cumsum(rng.normal(0, np.sqrt(q), n)))
+    std = rng.uniform(1.0, 4.0, n)
+    z = pos + rng.normal(0, 1, n) * std
+    f = PoseFilter([q, q])
+    m, s = f.smooth(np.c_[z, -z], np.c_[std, std])
+    np.testing.assert_allclose(m[:, 0], _reference_rts(z, std**2, q), atol=1e-6)
+    np.testing.assert_allclose(m[:, 1], -m[:, 0], atol=1e-9)  # the angles do not mix
+    fm, fs = PoseFilter([q]).filter(z[:, None], std[:, None])
+    assert np.abs(m[:, 0] - pos).mean() < 0.8 * np.abs(fm[:, 0] - pos).mean()
+    assert np.all(s[:, 0] <= fs[:, 0] + 1e-9) and np.allclose(s[-1, 0], fs[-1, 0])
+    assert f.smooth(np.empty((0, 2)), np.empty((0, 2)))[0].shape == (0, 2)
+
+
+def test_tune_filter_undoes_a_measurement_variance_too_wide_for_the_filter():
+    """A variance that is right for the errors: the labels' own motion prior (scale 1, or close).
+    A variance calibrated for a ±3σ band of heavy-tailed errors, several times the typical error's
+    (here 4×): a larger acceleration variance, so that the filter follows the measurements as much
+    as they deserve, and it errs less with it than with the labels' prior. Errors that last (a
+    constant offset for 40 frames at a time): the smoothed σ, which takes them as independent, is
+    widened until its ±3σ band holds them, and the band holds new rows of the same kind."""
+    from artmotion.pose.model import tune_filter
+
+    rng = np.random.default_rng(4)
+    n = 1200
+    Y = (30 * np.sin(np.arange(n) / 40.0))[:, None]
+    accel = accel_variance(Y)
+    frames = np.r_[np.arange(600), np.arange(602, 1202)]  # two sequences
+    pred = Y + rng.normal(0, 5, (n, 1))
+    right, wide = np.full((n, 1), 5.0), np.full((n, 1), 20.0)
+    s_right, f_right, m_right = (v[0] for v in tune_filter(Y, pred, right, accel, frames))
+    s_wide = tune_filter(Y, pred, wide, accel, frames)[0][0]
+    assert s_right <= 3.2 and s_wide >= 10, (s_right, s_wide)
+    assert f_right < 1.5 and m_right < 1.5, (f_right, m_right)  # independent errors: about Kalman's own
+
+    def err(std, s):
+        return np.abs(PoseFilter(accel * s).smooth(pred, std)[0] - Y).mean()
+
+    assert err(wide, s_wide) < 0.9 * err(wide, 1.0)
+    assert err(right, s_right) < 0.5 * np.abs(pred - Y).mean()
+
+    def lasting():
+        return Y + np.repeat(rng.normal(0, 5, n // 40), 40)[:, None] + rng.normal(0, 1, (n, 1))
+
+    scale, f_std, m_std = tune_filter(Y, lasting(), right, accel, frames)
+    assert m_std[0] > 1.5, m_std
+    new = lasting()
+    inside = []
+    for filt in (PoseFilter(accel * scale), PoseFilter(accel * scale, filter_std=f_std, smooth_std=m_std)):
+        m, s = filt.smooth(new, right)
+        inside.append(np.mean(np.abs(new - m) <= 3 * s))
+    assert inside[0] < 0.95 and inside[1] > 0.97, inside

@@ -104,11 +104,11 @@ def load_pose_model(model_path, column: str | None = None):
 
 def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
                 ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], dict]:
-    """Per track, the Kalman-filtered opening angle (angle ``k`` of the pose ``model``, see
+    """Per track, the Kalman-smoothed opening angle (angle ``k`` of the pose ``model``, see
     :func:`load_pose_model`) over the track's box crops, where the model applies.
 
     The pose model (``artmotion pose train``) sees each box's crop; its GP means and variances are
-    filtered in time (Eq. 3.6-3.7). First the crops of all tracks are compared with the model's
+    smoothed in time (Eq. 3.6-3.7, forward and back). First the crops of all tracks are compared with the model's
     training crops (:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`): when they are
     another domain (a model trained on renders, a real video), nothing is said about the opening.
     Returns the angles and ``{"crops", "domain_auc", "judged", "applies"}`` (not judged: too few
@@ -139,15 +139,16 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     if not info["applies"] or not items:
         return out, info
-    # every track's crops in one call (the model batches them), then each track filtered in time
+    # every track's crops in one call (the model batches them), then each track smoothed in time
     mean, std = model.predict(X, return_std=True, views=views)
-    dt = 1.0 / float(seq.fps) if seq.fps else 1.0
     start = 0
     for tid in tids:
         its, rows = crops[tid], slice(start, start + len(crops[tid]))
         start = rows.stop
         if len(its) >= min_boxes:
-            m, _ = model.make_filter(dt).filter(mean[rows], std[rows])
+            # the whole video is there: smoothed, each frame from past and future ones. The
+            # model's motion prior is per frame (not per second, as this took it before)
+            m, _ = model.make_filter().smooth(mean[rows], std[rows])
             out[tid] = (np.array([f for f, _, _ in its]), np.asarray(m)[:, k])
     return out, info
 

@@ -144,7 +144,8 @@ def predict_cmd(
     model: Path = typer.Argument(..., help="Model file from 'artmotion pose train'."),
     images: Path = typer.Argument(..., help="Folder of crops; file-name order is one sequence."),
     out: Path = typer.Option(..., "--out", help="CSV 'image,<name>,<name>_std,...' to write."),
-    smooth: bool = typer.Option(False, "--smooth", help="Kalman-filter the sequence (Eq. 3.6-3.7)."),
+    smooth: bool = typer.Option(False, "--smooth", help="Kalman-smooth the sequence (Eq. 3.6-3.7 forward, "
+                                "then Rauch-Tung-Striebel backward: each frame from past and future ones)."),
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
 ):
     """Predict every angle (mean and standard deviation, degrees) of each crop."""
@@ -163,7 +164,7 @@ def predict_cmd(
     X = reg.features(imgs)  # once, for the prediction and the domain test below
     mean, std = reg.predict(X, return_std=True, views=views)
     if smooth:
-        mean, std = reg.make_filter().filter(mean, std)
+        mean, std = reg.make_filter().smooth(mean, std)
     dt = time.perf_counter() - t
     assert reg.names_ is not None  # set by load
     write_predictions(out, [p.name for p in paths], reg.names_, mean, std)

@@ -120,7 +120,10 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     return mean, std, fmean, fstd, fold_id
 
 
-def summary(Y, mean, std, fmean, cols: Columns, names) -> dict[str, float]:
+def summary(Y, mean, std, fmean, cols: Columns, names, smooth=None) -> dict[str, float]:
+    """Mean errors of the raw (``mean``) and the filtered (``fmean``) predictions, and how often
+    the ±3σ band holds the truth; with ``smooth = (mean, std)`` of the smoother, its errors
+    (``"... smoothed"``) and band (``"all in 3sd smoothed"``) too."""
     raw = errors(Y, mean, cols, names)
     filt = errors(Y, fmean, cols, names)
     inside = np.abs(Y - mean) <= 3 * std
@@ -128,6 +131,10 @@ def summary(Y, mean, std, fmean, cols: Columns, names) -> dict[str, float]:
     for k, v in raw.items():
         res[f"{k}"] = float(v.mean())
         res[f"{k} filtered"] = float(filt[k].mean())
+    if smooth is not None:
+        for k, v in errors(Y, smooth[0], cols, names).items():
+            res[f"{k} smoothed"] = float(v.mean())
+        res["all in 3sd smoothed"] = float((np.abs(Y - smooth[0]) <= 3 * smooth[1]).all(1).mean())
     for j, n in enumerate(names):
         res[f"{n} in 3sd"] = float(inside[:, j].mean())
     res["all in 3sd"] = float(inside.all(1).mean())

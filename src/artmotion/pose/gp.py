@@ -107,6 +107,9 @@ class _BaseGP:
         self.y_mean = np.asarray(y_mean, dtype=float)
         self.y_std = np.asarray(y_std, dtype=float)
         self.var_scale = np.ones(len(hypers))
+        #: :func:`fit_gp`'s prediction (mean, std; calibrated, in the outputs' units) of the rows it
+        #: held out to calibrate the variance, by the GP solved without them; not saved
+        self.held_out: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def n_outputs(self) -> int:
@@ -389,10 +392,12 @@ def fit_gp(
 
     scale = np.ones(Y.shape[1])
     n_cal = int(round(n * (1 - calibrate))) if calibrate else n
+    held_out = None
     if 10 <= n_cal <= n - 10:
         m, s = build(X[:n_cal], Ys[:n_cal]).predict(X[n_cal:], return_std=True)
         z = np.abs(Ys[n_cal:] - m) / s
         scale = np.maximum(1.0, (np.quantile(z, BAND_LEVEL, axis=0) / 3.0) ** 2)
+        held_out = (m * y_std + y_mean, s * np.sqrt(scale) * y_std)
     gp = build(X, Ys)
-    gp.y_mean, gp.y_std, gp.var_scale = y_mean, y_std, scale
+    gp.y_mean, gp.y_std, gp.var_scale, gp.held_out = y_mean, y_std, scale, held_out
     return gp

@@ -3,7 +3,8 @@
 ``PoseRegressor(feature="hog").fit(images, Y)`` learns one GP per angle; ``predict(images,
 return_std=True)`` gives the mean and the predictive standard deviation of every angle.
 ``PoseFilter`` smooths a sequence of predictions with a constant-velocity Kalman filter per angle
-(Eq. 3.6) that observes the GP mean with the GP variance as its measurement noise (Eq. 3.7).
+(Eq. 3.6) that observes the GP mean with the GP variance as its measurement noise (Eq. 3.7):
+forward in real time, or forward and back over a recorded sequence (Rauch-Tung-Striebel).
 """
 
 from __future__ import annotations
@@ -78,6 +79,54 @@ def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = N
     return np.maximum(2.0 * d2.var(axis=0) / dt**4, 1e-6)
 
 
+#: multipliers of the acceleration variance that :func:`tune_filter` tries
+ACCEL_SCALES = 10.0 ** np.arange(0.0, 3.25, 0.5)
+
+
+def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.ndarray,
+                frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The filter for predictions like ``mean, std`` (held-out, with their labels ``Y``; rows in
+    time order, ``frames`` numbering them, a step other than 1 starting a new sequence), per angle:
+    the multiplier of ``accel_var`` (one of :data:`ACCEL_SCALES`) under which
+    :meth:`PoseFilter.smooth` errs least (absolute error), and the multipliers of the filtered and
+    of the smoothed standard deviations that make their ±3σ bands hold as many rows as a Gaussian's
+    (the rule of :func:`~artmotion.pose.gp.fit_gp`; never below 1). :meth:`PoseRegressor.fit`
+    tunes its filter so on its calibration rows.
+
+    The filter weighs each frame's prediction by the GP's variance, which :func:`fit_gp` calibrates
+    for a ±3σ band: the residuals are heavy-tailed, so that variance is several times the typical
+    frame's error (the opening's σ 15-18° against errors of 5-7°). With the labels' own
+    acceleration variance (:func:`accel_variance`) the filter then leaned on its motion prior and
+    lagged: the filtered opening was worse than the raw one (6.83 against 6.07° on the unseen
+    sequences, docs/pose.md). A larger acceleration variance lets it follow the predictions as far
+    as they deserve. And its covariance takes every frame's error as independent of the next, but
+    an error lasts as long as a pose is read badly (a jaw seen edge-on): the smoothed σ came out a
+    quarter to a half of the GP's and its band held 78-95 % of the truth; hence the multipliers."""
+    from artmotion.pose.gp import BAND_LEVEL
+
+    S = ACCEL_SCALES
+    k = Y.shape[1]
+    starts = np.flatnonzero(np.r_[True, np.diff(frames) != 1, True])
+    segments = [(a, b) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 3]
+    if not segments:
+        return np.ones(k), np.ones(k), np.ones(k)
+    err = np.zeros((len(S), k))
+    for a, b in segments:
+        # every scale at once: the angles' filters are independent, so each (scale, angle) is one
+        smoothed, _ = PoseFilter((S[:, None] * accel_var[None, :]).ravel()).smooth(np.tile(mean[a:b], len(S)),
+                                                                                    np.tile(std[a:b], len(S)))
+        err += np.abs(smoothed - np.tile(Y[a:b], len(S))).sum(0).reshape(len(S), k)
+    scale = S[np.argmin(err, axis=0)]
+    z_filter: list[np.ndarray] = []
+    z_smooth: list[np.ndarray] = []
+    for a, b in segments:
+        f = PoseFilter(accel_var * scale)
+        for out, z in ((f.filter(mean[a:b], std[a:b]), z_filter), (f.smooth(mean[a:b], std[a:b]), z_smooth)):
+            z.append(np.abs(Y[a:b] - out[0]) / out[1])
+    band = [np.maximum(1.0, np.quantile(np.concatenate(z), BAND_LEVEL, axis=0) / 3.0) for z in (z_filter, z_smooth)]
+    return scale, band[0], band[1]
+
+
 def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]:
     """Rows reordered so that the calibration rows come last, how many they are, and a frame
     number per row (in the original order) whose steps are 1 only within a group.
@@ -100,14 +149,20 @@ def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]
 class PoseFilter:
     """Per-angle Kalman filter, constant velocity with white-noise acceleration (Eq. 3.6, 3.7).
 
-    ``accel_var``: acceleration variance per angle (units²/frame⁴); ``dt`` the frame interval.
-    ``filter(mean, std)`` runs forward over a sequence (causal, real-time) and returns the
-    filtered means and standard deviations; ``step`` fuses one frame.
+    ``accel_var``: acceleration variance per angle (units²/frame⁴); ``dt`` the frame interval
+    (in frames); ``filter_std``, ``smooth_std``: multipliers of the standard deviations returned
+    (per angle or one). ``filter(mean, std)`` runs forward over a sequence (causal, real-time)
+    and returns the filtered means and standard deviations; ``step`` fuses one frame;
+    ``smooth(mean, std)`` estimates every frame from the whole sequence (offline).
     """
 
-    def __init__(self, accel_var, dt: float = 1.0):
+    def __init__(self, accel_var, dt: float = 1.0, filter_std=1.0, smooth_std=1.0):
         self.accel_var = np.atleast_1d(np.asarray(accel_var, dtype=float))
         self.dt = float(dt)
+        # multipliers of the standard deviations that ``filter``/``step`` and ``smooth`` return
+        # (:func:`tune_filter`: the filter's own covariance takes the errors as independent)
+        self.filter_std = np.asarray(filter_std, dtype=float)
+        self.smooth_std = np.asarray(smooth_std, dtype=float)
         self.reset()
 
     def reset(self) -> None:
@@ -133,7 +188,7 @@ class PoseFilter:
             raise InputError(f"expected {len(self.accel_var)} angles, got {len(z)}")
         if self.x is None:
             self._start(z, var)
-            return z.copy(), np.sqrt(var)
+            return z.copy(), np.sqrt(var) * self.filter_std
         # predict (Eq. 3.6), then update with the GP's mean as the measurement of the angle and
         # its variance as R (Eq. 3.7); the covariance in Joseph form (it stays symmetric positive)
         x = self.x @ self.F.T
@@ -143,7 +198,7 @@ class PoseFilter:
         I_KH = np.tile(np.eye(2), (len(z), 1, 1))
         I_KH[:, :, 0] -= K
         self.P = I_KH @ P @ I_KH.transpose(0, 2, 1) + var[:, None, None] * (K[:, :, None] * K[:, None, :])
-        return self.x[:, 0].copy(), np.sqrt(self.P[:, 0, 0])
+        return self.x[:, 0].copy(), np.sqrt(self.P[:, 0, 0]) * self.filter_std
 
     def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         mean = np.atleast_2d(np.asarray(mean, dtype=float))
@@ -153,6 +208,32 @@ class PoseFilter:
         for t in range(len(mean)):
             out[t], sd[t] = self.step(mean[t], std[t])
         return out, sd
+
+    def smooth(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
+        """Offline: every frame's estimate from the whole sequence, past and future frames — the
+        forward filter, then the Rauch-Tung-Striebel backward pass (for a recorded video; the
+        forward :meth:`filter` is the real-time one)."""
+        mean = np.atleast_2d(np.asarray(mean, dtype=float))
+        std = np.atleast_2d(np.asarray(std, dtype=float))
+        self.reset()
+        T = len(mean)
+        out, sd = np.empty_like(mean), np.empty_like(mean)
+        if T == 0:
+            return out, sd
+        xs, Ps = np.empty((T, mean.shape[1], 2)), np.empty((T, mean.shape[1], 2, 2))
+        for t in range(T):
+            self.step(mean[t], std[t])
+            assert self.x is not None  # set by the first step
+            xs[t], Ps[t] = self.x, self.P
+        x, P = xs[-1], Ps[-1]
+        out[-1], sd[-1] = x[:, 0], np.sqrt(P[:, 0, 0])
+        for t in range(T - 2, -1, -1):
+            Pp = self.F @ Ps[t] @ self.F.T + self.Q  # the prediction of frame t + 1 from frame t
+            G = Ps[t] @ self.F.T @ np.linalg.inv(Pp)
+            x = xs[t] + (G @ (x - xs[t] @ self.F.T)[:, :, None])[:, :, 0]
+            P = Ps[t] + G @ (P - Pp) @ G.transpose(0, 2, 1)
+            out[t], sd[t] = x[:, 0], np.sqrt(np.maximum(P[:, 0, 0], 0.0))
+        return out, sd * self.smooth_std
 
 
 class PoseRegressor:
@@ -225,6 +306,9 @@ class PoseRegressor:
         self.names_: list[str] | None = None
         self.gp_: ExactGP | SparseGP | None = None
         self.accel_var_: np.ndarray | None = None
+        #: multipliers of the filter's and the smoother's standard deviations (:func:`tune_filter`)
+        self.filter_std_: np.ndarray | None = None
+        self.smooth_std_: np.ndarray | None = None
         self.pca_mean_: np.ndarray | None = None
         self.pca_components_: np.ndarray | None = None
 
@@ -274,7 +358,8 @@ class PoseRegressor:
         never sees them). ``groups`` (one label per row: the recording or render each crop comes
         from, each group's rows in time order): the last ``CALIBRATE`` of every group instead, so
         that every kind of training motion is in the calibration, and the motion prior's second
-        differences never straddle two groups. Without ``groups`` the rows are one sequence."""
+        differences never straddle two groups. Without ``groups`` the rows are one sequence. On the
+        same rows the filter is tuned (:func:`tune_filter`)."""
         X = self._as_features(images)
         Y = np.asarray(Y, dtype=float)
         Y = Y.reshape(len(Y), -1)
@@ -290,6 +375,7 @@ class PoseRegressor:
         V = self._check_views(views, len(X), fitting=True)
         order, n_cal, frames = calibration_order(len(X), groups)
         self.accel_var_ = accel_variance(Y, frames=frames)
+        self.filter_std_ = self.smooth_std_ = np.ones(Y.shape[1])
         in_order = np.array_equal(order, np.arange(len(X)))  # without groups: no copy of the crops
         if self.feature == "cnn":
             need_package("torch", "tools", "the cnn pose feature")
@@ -314,9 +400,17 @@ class PoseRegressor:
             self.pca_mean_ = pca.mean_.astype(np.float32)
             self.pca_components_ = pca.components_.astype(np.float32)
         # the GP's rows in ``order`` (calibration rows last); projected first, so no crop is copied
-        self.gp_ = fit_gp(self._project(X, V)[order], Y[order], self.method, self.max_exact, self.n_inducing, self.n_opt,
-                          self.restarts, self.seed, progress=self.progress, inducing=self.inducing,
-                          neighbours=self.neighbours, calibrate=n_cal / len(X), n_inducing_var=self.n_inducing_var)
+        Z = self._project(X, V)[order]
+        self.gp_ = fit_gp(Z, Y[order], self.method, self.max_exact, self.n_inducing, self.n_opt, self.restarts, self.seed,
+                          progress=self.progress, inducing=self.inducing, neighbours=self.neighbours,
+                          calibrate=n_cal / len(X), n_inducing_var=self.n_inducing_var)
+        if self.gp_.held_out is not None:  # the filter's motion prior, tuned on the calibration rows
+            cal = order[len(X) - n_cal:]
+            mean, std = self.gp_.held_out
+            if self.readout_ is not None and self.readout_.any():  # the network never saw these rows
+                mean[:, self.readout_] = self._readout(Z[len(X) - n_cal:])[:, self.readout_]
+            scale, self.filter_std_, self.smooth_std_ = tune_filter(Y[cal], mean, std, self.accel_var_, frames[cal])
+            self.accel_var_ = self.accel_var_ * scale
         return self
 
     def _as_features(self, images) -> np.ndarray:
@@ -415,7 +509,10 @@ class PoseRegressor:
         return float(roc_auc_score(y, p))
 
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
-        return PoseFilter(self.accel_var_, dt)
+        """The model's Kalman filter: its acceleration variance from the training labels, scaled on
+        the calibration rows, and its bands calibrated there (:func:`tune_filter`); ``dt`` in frames."""
+        return PoseFilter(self.accel_var_, dt, 1.0 if self.filter_std_ is None else self.filter_std_,
+                          1.0 if self.smooth_std_ is None else self.smooth_std_)
 
     # -- persistence
     def save(self, path: str | os.PathLike) -> None:
@@ -429,6 +526,8 @@ class PoseRegressor:
             method=np.array(gp.kind), X=gp.X.astype(np.float32), Ys=gp.Ys, y_mean=gp.y_mean, y_std=gp.y_std,
             hypers=np.array([h.as_array() for h in gp.hypers]), accel_var=self.accel_var_,
             var_scale=gp.var_scale,
+            filter_std=np.ones(len(self.accel_var_)) if self.filter_std_ is None else self.filter_std_,
+            smooth_std=np.ones(len(self.accel_var_)) if self.smooth_std_ is None else self.smooth_std_,
             inducing=gp.inducing if isinstance(gp, SparseGP) else np.zeros(0, np.int64),
             var_inducing=(gp.var_inducing if isinstance(gp, SparseGP) and gp.var_inducing is not None
                           else np.zeros(0, np.int64)),
@@ -603,6 +702,12 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
         reg.n_inducing, reg.n_inducing_var = len(inducing), len(var_ind) or None
     reg.gp_.var_scale = var_scale.astype(float)
     reg.accel_var_ = accel_var.astype(float)
+    # (models written before 2026-11-28 have none: the filter's own standard deviations)
+    for key in ("filter_std", "smooth_std"):
+        m = _array(d, key, (k,)).astype(float) if key in d else np.ones(k)
+        if np.any(m < 1):
+            raise InputError(f"{key!r} must be at least 1")
+        setattr(reg, key + "_", m)
     reg.method = method
     # a test prediction on a gray crop: whatever slipped through shows here, before any long work
     views = np.zeros((1, F.VIEW_DIM)) if reg.uses_views_ else None

@@ -9,12 +9,14 @@ scored in the default look and in the ``alt`` look — yellow tissue, brass jaws
 same motion and scene — rendered into ``--out`` when missing: orientation and opening error
 (degrees), all four angles inside ±3σ, and the domain test's AUC
 (:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`). Writes docs/pose.md's table between
-``<!-- pose-look -->``.
+``<!-- pose-look -->``: the rows of the models given replace their earlier rows, the rows of other
+models (scored by earlier runs) stay.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -60,10 +62,17 @@ def main(argv=None) -> int:
             lines.append(f"| {m.feature} ({path.name}) | seed {seed} | {style} | {s['orientation']:.2f} | "
                          f"{s['opening']:.2f} | {100 * s['all in 3sd']:.1f} % | {m.domain_auc(X, views):.2f} |")
             print(lines[-1], flush=True)
-    text = "\n".join(lines)
+    doc = ROOT / "docs" / "pose.md"
+    # rows of models not scored in this run stay (earlier models whose files are gone): the
+    # block is a record of every model scored, each model's rows from its latest run
+    names = {f"({path.name})" for path in a.models}
+    block = re.search(r"<!-- pose-look -->\n(.*?)<!-- /pose-look -->", doc.read_text(encoding="utf-8"), re.S)
+    kept = [line for line in (block.group(1).splitlines()[2:] if block else [])
+            if line.startswith("| ") and not any(n in line for n in names)]
+    text = "\n".join(lines[:2] + kept + lines[2:])
     print(text)
     if not a.no_write:
-        replace_block(ROOT / "docs" / "pose.md", "pose-look", text)
+        replace_block(doc, "pose-look", text)
     return 0
 
 

@@ -122,7 +122,7 @@ def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.
     for a, b in segments:
         f = PoseFilter(accel_var * scale)
         for out, z in ((f.filter(mean[a:b], std[a:b]), z_filter), (f.smooth(mean[a:b], std[a:b]), z_smooth)):
-            z.append(np.abs(Y[a:b] - out[0]) / out[1])
+            z.append(np.abs(Y[a:b] - out[0]) / np.maximum(out[1], 1e-9))
     band = [np.maximum(1.0, np.quantile(np.concatenate(z), BAND_LEVEL, axis=0) / 3.0) for z in (z_filter, z_smooth)]
     return scale, band[0], band[1]
 

@@ -1,5 +1,7 @@
 import numpy as np
+import pytest
 
+from artmotion.errors import InputError
 from artmotion.pose.model import PoseFilter, accel_variance
 
 
@@ -105,6 +107,54 @@ def test_smoother_matches_reference_and_beats_the_filter():
     assert np.abs(m[:, 0] - pos).mean() < 0.8 * np.abs(fm[:, 0] - pos).mean()
     assert np.all(s[:, 0] <= fs[:, 0] + 1e-9) and np.allclose(s[-1, 0], fs[-1, 0])
     assert f.smooth(np.empty((0, 2)), np.empty((0, 2)))[0].shape == (0, 2)
+
+
+def test_smoother_bridges_the_frames_a_track_missed():
+    """Rows numbered by their frames: a gap is steps of the motion model without a measurement.
+    Across 20 missed frames of a steady motion the smoother stays on it; taking the rows on either
+    side of the gap for neighbours (no ``frames``) sees a jump and smears it over both sides."""
+    rng = np.random.default_rng(5)
+    frames = np.r_[np.arange(0, 30), np.arange(50, 80)]
+    truth = 2.0 * frames
+    z = truth + rng.normal(0, 1, len(frames))
+    std = np.ones((len(frames), 1))
+    f = PoseFilter([0.01])
+    bridged = f.smooth(z[:, None], std, frames=frames)
+    joined = f.smooth(z[:, None], std)
+    assert np.abs(bridged[0][:, 0] - truth).max() < 3.0
+    assert np.abs(joined[0][:, 0] - truth).max() > 5.0
+    # consecutive frames: the same as without them
+    np.testing.assert_allclose(f.smooth(z[:30, None], std[:30], frames=frames[:30])[0], f.smooth(z[:30, None], std[:30])[0])
+    with pytest.raises(InputError, match="increasing"):
+        f.smooth(z[:, None], std, frames=frames[::-1])
+
+
+def test_fit_tunes_its_filter_on_the_calibration_rows(monkeypatch):
+    """fit hands tune_filter the calibration rows (their labels, the GP's held-out predictions of
+    them, their frame numbers) and keeps what it returns: the filter a user gets is the tuned one."""
+    from artmotion.pose import model as M
+
+    rng = np.random.default_rng(6)
+    n = 200
+    Y = np.c_[np.sin(np.arange(n) / 10.0), np.cos(np.arange(n) / 15.0)] * 20
+    X = np.c_[Y / 20, rng.normal(0, 0.05, (n, 3))]
+    seen = {}
+
+    def fake(Yc, mean, std, accel, frames):
+        seen.update(Y=Yc, mean=mean, std=std, frames=frames)
+        return np.array([10.0, 100.0]), np.array([2.0, 3.0]), np.array([4.0, 5.0])
+
+    monkeypatch.setattr(M, "tune_filter", fake)
+    reg = M.PoseRegressor().fit(X, Y, ["a", "b"], groups=np.repeat([0, 1], n // 2))
+    order, n_cal, frames = M.calibration_order(n, np.repeat([0, 1], n // 2))
+    cal = order[n - n_cal:]
+    np.testing.assert_array_equal(seen["Y"], Y[cal])
+    np.testing.assert_array_equal(seen["frames"], frames[cal])
+    assert len(seen["mean"]) == n_cal and np.abs(seen["mean"] - Y[cal]).mean() < 0.3 * np.abs(Y[cal]).mean()
+    np.testing.assert_allclose(reg.accel_var_, accel_variance(Y, frames=frames) * [10, 100])
+    filt = reg.make_filter()
+    np.testing.assert_array_equal(filt.filter_std, [2, 3])
+    np.testing.assert_array_equal(filt.smooth_std, [4, 5])
 
 
 def test_tune_filter_undoes_a_measurement_variance_too_wide_for_the_filter():

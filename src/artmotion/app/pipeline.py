@@ -147,9 +147,11 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
         start = rows.stop
         if len(its) >= min_boxes:
             # the whole video is there: smoothed, each frame from past and future ones. The
-            # model's motion prior is per frame (not per second, as this took it before)
-            m, _ = model.make_filter().smooth(mean[rows], std[rows])
-            out[tid] = (np.array([f for f, _, _ in its]), np.asarray(m)[:, k])
+            # model's motion prior is per frame (not per second, as this took it before), and
+            # the frames a track missed are steps without a measurement
+            fnos = np.array([f for f, _, _ in its])
+            m, _ = model.make_filter().smooth(mean[rows], std[rows], frames=fnos)
+            out[tid] = (fnos, m[:, k])
     return out, info
 
 

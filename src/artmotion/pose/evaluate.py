@@ -79,7 +79,9 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     Filtering: with contiguous folds the Kalman filter runs over each test block; with random
     folds the out-of-fold predictions of all frames, in time order, are one sequence (every
     frame predicted by a model that never saw it) and the filter runs over that, with the mean
-    of the folds' acceleration priors (each from training labels only). ``views``: the crops'
+    of the folds' acceleration priors (each from training labels only). The filter here is the
+    labels' own motion prior, untuned (the thesis's protocol; not :meth:`PoseRegressor.make_filter`,
+    whose tuning on calibration rows the unseen-sequence figures use). ``views``: the crops'
     :func:`artmotion.pose.features.box_views`, for models that use them.
     """
     n = len(X)

@@ -108,7 +108,8 @@ class _BaseGP:
         self.y_std = np.asarray(y_std, dtype=float)
         self.var_scale = np.ones(len(hypers))
         #: :func:`fit_gp`'s prediction (mean, std; calibrated, in the outputs' units) of the rows it
-        #: held out to calibrate the variance, by the GP solved without them; not saved
+        #: held out to calibrate the variance, by the GP solved without them (its hyper-parameters,
+        #: though, were chosen on a subsample of all rows, these included); not saved
         self.held_out: tuple[np.ndarray, np.ndarray] | None = None
 
     @property

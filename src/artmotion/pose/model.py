@@ -110,20 +110,22 @@ def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.
     segments = [(a, b) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 3]
     if not segments:
         return np.ones(k), np.ones(k), np.ones(k)
-    err = np.zeros((len(S), k))
+    # every scale at once: the angles' filters are independent, so each (scale, angle) is one
+    # column, scale by scale; per segment, the filtered and the smoothed means and deviations
+    runs = []
+    f = PoseFilter((S[:, None] * accel_var[None, :]).ravel())
     for a, b in segments:
-        # every scale at once: the angles' filters are independent, so each (scale, angle) is one
-        smoothed, _ = PoseFilter((S[:, None] * accel_var[None, :]).ravel()).smooth(np.tile(mean[a:b], len(S)),
-                                                                                    np.tile(std[a:b], len(S)))
-        err += np.abs(smoothed - np.tile(Y[a:b], len(S))).sum(0).reshape(len(S), k)
-    scale = S[np.argmin(err, axis=0)]
-    z_filter: list[np.ndarray] = []
-    z_smooth: list[np.ndarray] = []
-    for a, b in segments:
-        f = PoseFilter(accel_var * scale)
-        for out, z in ((f.filter(mean[a:b], std[a:b]), z_filter), (f.smooth(mean[a:b], std[a:b]), z_smooth)):
-            z.append(np.abs(Y[a:b] - out[0]) / np.maximum(out[1], 1e-9))
-    band = [np.maximum(1.0, np.quantile(np.concatenate(z), BAND_LEVEL, axis=0) / 3.0) for z in (z_filter, z_smooth)]
+        xs, Ps = f._forward(np.tile(mean[a:b], len(S)), np.tile(std[a:b], len(S)))
+        runs.append((Y[a:b], [(xs[:, :, 0], np.sqrt(Ps[:, :, 0, 0])), f._backward(xs, Ps)]))
+    err = sum(np.abs(outs[1][0] - np.tile(y, len(S))).sum(0) for y, outs in runs).reshape(len(S), k)
+    best = np.argmin(err, axis=0)
+    cols = best * k + np.arange(k)  # each angle's column at its chosen scale
+    band = []
+    for which in (0, 1):  # filtered, smoothed
+        z = np.concatenate([np.abs(y - outs[which][0][:, cols]) / np.maximum(outs[which][1][:, cols], 1e-9)
+                            for y, outs in runs])
+        band.append(np.maximum(1.0, np.quantile(z, BAND_LEVEL, axis=0) / 3.0))
+    scale = S[best]
     return scale, band[0], band[1]
 
 
@@ -200,31 +202,26 @@ class PoseFilter:
         self.P = I_KH @ P @ I_KH.transpose(0, 2, 1) + var[:, None, None] * (K[:, :, None] * K[:, None, :])
         return self.x[:, 0].copy(), np.sqrt(self.P[:, 0, 0]) * self.filter_std
 
-    def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
+    def _forward(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
+        """The forward pass over a sequence: every frame's filtered state and covariance."""
         mean = np.atleast_2d(np.asarray(mean, dtype=float))
         std = np.atleast_2d(np.asarray(std, dtype=float))
         self.reset()
-        out, sd = np.empty_like(mean), np.empty_like(mean)
-        for t in range(len(mean)):
-            out[t], sd[t] = self.step(mean[t], std[t])
-        return out, sd
-
-    def smooth(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
-        """Offline: every frame's estimate from the whole sequence, past and future frames — the
-        forward filter, then the Rauch-Tung-Striebel backward pass (for a recorded video; the
-        forward :meth:`filter` is the real-time one)."""
-        mean = np.atleast_2d(np.asarray(mean, dtype=float))
-        std = np.atleast_2d(np.asarray(std, dtype=float))
-        self.reset()
-        T = len(mean)
-        out, sd = np.empty_like(mean), np.empty_like(mean)
-        if T == 0:
-            return out, sd
-        xs, Ps = np.empty((T, mean.shape[1], 2)), np.empty((T, mean.shape[1], 2, 2))
+        T, k = mean.shape
+        xs, Ps = np.empty((T, k, 2)), np.empty((T, k, 2, 2))
         for t in range(T):
             self.step(mean[t], std[t])
             assert self.x is not None  # set by the first step
             xs[t], Ps[t] = self.x, self.P
+        return xs, Ps
+
+    def _backward(self, xs: np.ndarray, Ps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The Rauch-Tung-Striebel backward pass over :meth:`_forward`'s states: means and
+        standard deviations (not yet multiplied by ``smooth_std``)."""
+        T = len(xs)
+        out, sd = np.empty(xs.shape[:2]), np.empty(xs.shape[:2])
+        if T == 0:
+            return out, sd
         x, P = xs[-1], Ps[-1]
         out[-1], sd[-1] = x[:, 0], np.sqrt(P[:, 0, 0])
         for t in range(T - 2, -1, -1):
@@ -233,6 +230,35 @@ class PoseFilter:
             x = xs[t] + (G @ (x - xs[t] @ self.F.T)[:, :, None])[:, :, 0]
             P = Ps[t] + G @ (P - Pp) @ G.transpose(0, 2, 1)
             out[t], sd[t] = x[:, 0], np.sqrt(np.maximum(P[:, 0, 0], 0.0))
+        return out, sd
+
+    def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
+        xs, Ps = self._forward(mean, std)
+        return xs[:, :, 0].copy(), np.sqrt(Ps[:, :, 0, 0]) * self.filter_std
+
+    def smooth(self, mean, std, frames=None) -> tuple[np.ndarray, np.ndarray]:
+        """Offline: every frame's estimate from the whole sequence, past and future frames — the
+        forward filter, then the Rauch-Tung-Striebel backward pass (for a recorded video; the
+        forward :meth:`filter` is the real-time one).
+
+        ``frames``: the rows' frame numbers (increasing; None: consecutive). A frame missing
+        between two rows (a track that lost its box) is a step of the motion model without a
+        measurement, so the prior bridges the gap as far as it deserves, instead of taking the
+        rows on either side for neighbours."""
+        mean = np.atleast_2d(np.asarray(mean, dtype=float))
+        std = np.atleast_2d(np.asarray(std, dtype=float))
+        if frames is not None:
+            frames = np.asarray(frames)
+            if len(frames) != len(mean) or np.any(np.diff(frames) < 1):
+                raise InputError("frames must number the rows, increasing")
+            if len(frames) and frames[-1] - frames[0] + 1 > len(frames):
+                at = frames - frames[0]
+                full_mean = np.zeros((at[-1] + 1, mean.shape[1]))
+                full_std = np.full_like(full_mean, 1e12)  # no measurement: K ≈ 0
+                full_mean[at], full_std[at] = mean, std
+                out, sd = self.smooth(full_mean, full_std)
+                return out[at], sd[at]
+        out, sd = self._backward(*self._forward(mean, std))
         return out, sd * self.smooth_std
 
 
@@ -407,6 +433,8 @@ class PoseRegressor:
         if self.gp_.held_out is not None:  # the filter's motion prior, tuned on the calibration rows
             cal = order[len(X) - n_cal:]
             mean, std = self.gp_.held_out
+            assert len(mean) == n_cal, "the GP held out other rows than the calibration rows"
+            mean = mean.copy()  # the read-out below replaces columns: not in the GP's own record
             if self.readout_ is not None and self.readout_.any():  # the network never saw these rows
                 mean[:, self.readout_] = self._readout(Z[len(X) - n_cal:])[:, self.readout_]
             scale, self.filter_std_, self.smooth_std_ = tune_filter(Y[cal], mean, std, self.accel_var_, frames[cal])
@@ -511,13 +539,14 @@ class PoseRegressor:
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
         """The model's Kalman filter: its acceleration variance from the training labels, scaled on
         the calibration rows, and its bands calibrated there (:func:`tune_filter`); ``dt`` in frames."""
-        return PoseFilter(self.accel_var_, dt, 1.0 if self.filter_std_ is None else self.filter_std_,
-                          1.0 if self.smooth_std_ is None else self.smooth_std_)
+        assert self.accel_var_ is not None and self.filter_std_ is not None and self.smooth_std_ is not None, \
+            "PoseRegressor is not fitted"
+        return PoseFilter(self.accel_var_, dt, self.filter_std_, self.smooth_std_)
 
     # -- persistence
     def save(self, path: str | os.PathLike) -> None:
         gp = self.gp_
-        assert gp is not None and self.accel_var_ is not None, "PoseRegressor is not fitted"
+        assert gp is not None and self.accel_var_ is not None and self.filter_std_ is not None, "PoseRegressor is not fitted"
         neighbours = getattr(gp, "neighbours", None)
         data: dict[str, Any]  # arrays only; ``Any`` because ``**data`` also meets savez' ``allow_pickle: bool``
         data = dict(
@@ -526,8 +555,7 @@ class PoseRegressor:
             method=np.array(gp.kind), X=gp.X.astype(np.float32), Ys=gp.Ys, y_mean=gp.y_mean, y_std=gp.y_std,
             hypers=np.array([h.as_array() for h in gp.hypers]), accel_var=self.accel_var_,
             var_scale=gp.var_scale,
-            filter_std=np.ones(len(self.accel_var_)) if self.filter_std_ is None else self.filter_std_,
-            smooth_std=np.ones(len(self.accel_var_)) if self.smooth_std_ is None else self.smooth_std_,
+            filter_std=self.filter_std_, smooth_std=self.smooth_std_,
             inducing=gp.inducing if isinstance(gp, SparseGP) else np.zeros(0, np.int64),
             var_inducing=(gp.var_inducing if isinstance(gp, SparseGP) and gp.var_inducing is not None
                           else np.zeros(0, np.int64)),

@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from artmotion.pose.data import load_labelled  # noqa: E402
-from artmotion.pose.model import PoseFilter, PoseRegressor  # noqa: E402
+from artmotion.pose.filter import PoseFilter  # noqa: E402
+from artmotion.pose.model import PoseRegressor  # noqa: E402
 
 
 def best_of(fn, repeat=5):

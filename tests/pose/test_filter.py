@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from artmotion.errors import InputError
-from artmotion.pose.model import PoseFilter, accel_variance
+from artmotion.pose.filter import PoseFilter, accel_variance
 
 
 def _reference_kf(z, r, q, dt=1.0):
@@ -164,7 +164,7 @@ def test_tune_filter_undoes_a_measurement_variance_too_wide_for_the_filter():
     as they deserve, and it errs less with it than with the labels' prior. Errors that last (a
     constant offset for 40 frames at a time): the smoothed σ, which takes them as independent, is
     widened until its ±3σ band holds them, and the band holds new rows of the same kind."""
-    from artmotion.pose.model import tune_filter
+    from artmotion.pose.filter import tune_filter
 
     rng = np.random.default_rng(4)
     n = 1200

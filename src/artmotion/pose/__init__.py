@@ -6,6 +6,6 @@ constant-velocity Kalman filter (Sec. 3.5). See docs/pose.md.
 
 from artmotion._lazy import lazy_attributes
 
-_WHERE = {"PoseFilter": "model", "PoseRegressor": "model"}
+_WHERE = {"PoseFilter": "filter", "PoseRegressor": "model"}
 __all__ = sorted(_WHERE)
 __getattr__ = lazy_attributes(__name__, _WHERE)

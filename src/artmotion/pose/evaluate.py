@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.pose.model import PoseFilter, PoseRegressor, accel_variance
+from artmotion.pose.filter import PoseFilter, accel_variance
+from artmotion.pose.model import PoseRegressor
 from artmotion.pose.render import stem_direction
 
 

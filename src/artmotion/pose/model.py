@@ -1,10 +1,8 @@
-"""Pose regression from tool crops (Sec. 3.4) and temporal filtering (Sec. 3.5).
+"""Pose regression from tool crops (Sec. 3.4).
 
 ``PoseRegressor(feature="hog").fit(images, Y)`` learns one GP per angle; ``predict(images,
-return_std=True)`` gives the mean and the predictive standard deviation of every angle.
-``PoseFilter`` smooths a sequence of predictions with a constant-velocity Kalman filter per angle
-(Eq. 3.6) that observes the GP mean with the GP variance as its measurement noise (Eq. 3.7):
-forward in real time, or forward and back over a recorded sequence (Rauch-Tung-Striebel).
+return_std=True)`` gives the mean and the predictive standard deviation of every angle;
+``make_filter()`` the temporal filter (Sec. 3.5, :mod:`artmotion.pose.filter`) tuned for them.
 """
 
 from __future__ import annotations
@@ -19,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from artmotion.errors import InputError, need_package
-from artmotion.filters import constant_velocity
 from artmotion.io import atomic_path
 from artmotion.io.files import read_head
 from artmotion.pose import features as F
+from artmotion.pose.filter import PoseFilter, accel_variance, tune_filter
 from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
 MAGIC = "artmotion-pose-gp"
@@ -60,75 +58,6 @@ def is_opening(name: str) -> bool:
     return "open" in name.lower()
 
 
-def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = None) -> np.ndarray:
-    """White-noise acceleration variance per column of a time-ordered ``Y`` (``2 var(d2 y) / dt^4``).
-
-    For the discretised model of Eq. 3.6, ``y[t+1] - 2 y[t] + y[t-1] = dt^2 (a[t] + a[t-1]) / 2``.
-    ``frames``: the frame number of each row; only second differences over three consecutive
-    frames count (rows taken out of a sequence, e.g. a cross-validation fold, leave gaps).
-    """
-    Y = np.asarray(Y, dtype=float).reshape(len(Y), -1)
-    if len(Y) < 4:
-        return np.ones(Y.shape[1])
-    d2 = np.diff(Y, n=2, axis=0)
-    if frames is not None:
-        step = np.diff(np.asarray(frames))
-        d2 = d2[(step[:-1] == 1) & (step[1:] == 1)]
-        if len(d2) < 2:
-            return np.ones(Y.shape[1])
-    return np.maximum(2.0 * d2.var(axis=0) / dt**4, 1e-6)
-
-
-#: multipliers of the acceleration variance that :func:`tune_filter` tries
-ACCEL_SCALES = 10.0 ** np.arange(0.0, 3.25, 0.5)
-
-
-def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.ndarray,
-                frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The filter for predictions like ``mean, std`` (held-out, with their labels ``Y``; rows in
-    time order, ``frames`` numbering them, a step other than 1 starting a new sequence), per angle:
-    the multiplier of ``accel_var`` (one of :data:`ACCEL_SCALES`) under which
-    :meth:`PoseFilter.smooth` errs least (absolute error), and the multipliers of the filtered and
-    of the smoothed standard deviations that make their ±3σ bands hold as many rows as a Gaussian's
-    (the rule of :func:`~artmotion.pose.gp.fit_gp`; never below 1). :meth:`PoseRegressor.fit`
-    tunes its filter so on its calibration rows.
-
-    The filter weighs each frame's prediction by the GP's variance, which :func:`fit_gp` calibrates
-    for a ±3σ band: the residuals are heavy-tailed, so that variance is several times the typical
-    frame's error (the opening's σ 15-18° against errors of 5-7°). With the labels' own
-    acceleration variance (:func:`accel_variance`) the filter then leaned on its motion prior and
-    lagged: the filtered opening was worse than the raw one (6.83 against 6.07° on the unseen
-    sequences, docs/pose.md). A larger acceleration variance lets it follow the predictions as far
-    as they deserve. And its covariance takes every frame's error as independent of the next, but
-    an error lasts as long as a pose is read badly (a jaw seen edge-on): the smoothed σ came out a
-    quarter to a half of the GP's and its band held 78-95 % of the truth; hence the multipliers."""
-    from artmotion.pose.gp import BAND_LEVEL
-
-    S = ACCEL_SCALES
-    k = Y.shape[1]
-    starts = np.flatnonzero(np.r_[True, np.diff(frames) != 1, True])
-    segments = [(a, b) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 3]
-    if not segments:
-        return np.ones(k), np.ones(k), np.ones(k)
-    # every scale at once: the angles' filters are independent, so each (scale, angle) is one
-    # column, scale by scale; per segment, the filtered and the smoothed means and deviations
-    runs = []
-    f = PoseFilter((S[:, None] * accel_var[None, :]).ravel())
-    for a, b in segments:
-        xs, Ps = f._forward(np.tile(mean[a:b], len(S)), np.tile(std[a:b], len(S)))
-        runs.append((Y[a:b], [(xs[:, :, 0], np.sqrt(Ps[:, :, 0, 0])), f._backward(xs, Ps)]))
-    err = sum(np.abs(outs[1][0] - np.tile(y, len(S))).sum(0) for y, outs in runs).reshape(len(S), k)
-    best = np.argmin(err, axis=0)
-    cols = best * k + np.arange(k)  # each angle's column at its chosen scale
-    band = []
-    for which in (0, 1):  # filtered, smoothed
-        z = np.concatenate([np.abs(y - outs[which][0][:, cols]) / np.maximum(outs[which][1][:, cols], 1e-9)
-                            for y, outs in runs])
-        band.append(np.maximum(1.0, np.quantile(z, BAND_LEVEL, axis=0) / 3.0))
-    scale = S[best]
-    return scale, band[0], band[1]
-
-
 def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]:
     """Rows reordered so that the calibration rows come last, how many they are, and a frame
     number per row (in the original order) whose steps are 1 only within a group.
@@ -146,120 +75,6 @@ def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]
         held[:] = False
     frames = np.arange(n) + 2 * np.concatenate([[0], np.cumsum(g[1:] != g[:-1])])
     return np.concatenate([np.flatnonzero(~held), np.flatnonzero(held)]), int(held.sum()), frames
-
-
-class PoseFilter:
-    """Per-angle Kalman filter, constant velocity with white-noise acceleration (Eq. 3.6, 3.7).
-
-    ``accel_var``: acceleration variance per angle (units²/frame⁴); ``dt`` the frame interval
-    (in frames); ``filter_std``, ``smooth_std``: multipliers of the standard deviations returned
-    (per angle or one). ``filter(mean, std)`` runs forward over a sequence (causal, real-time)
-    and returns the filtered means and standard deviations; ``step`` fuses one frame;
-    ``smooth(mean, std)`` estimates every frame from the whole sequence (offline).
-    """
-
-    def __init__(self, accel_var, dt: float = 1.0, filter_std=1.0, smooth_std=1.0):
-        self.accel_var = np.atleast_1d(np.asarray(accel_var, dtype=float))
-        self.dt = float(dt)
-        # multipliers of the standard deviations that ``filter``/``step`` and ``smooth`` return
-        # (:func:`tune_filter`: the filter's own covariance takes the errors as independent)
-        self.filter_std = np.asarray(filter_std, dtype=float)
-        self.smooth_std = np.asarray(smooth_std, dtype=float)
-        self.reset()
-
-    def reset(self) -> None:
-        self.x: np.ndarray | None = None   # (k, 2): each angle's [y, y']
-        self.P = np.zeros((0, 2, 2))        # (k, 2, 2): their covariances
-
-    def _start(self, z: np.ndarray, var: np.ndarray) -> None:
-        # the angles' filters are independent: one 2-state filter each, stepped together (F, Q
-        # per angle: the diagonal blocks of the constant-velocity model over all angles)
-        Fm, Q, _ = constant_velocity(self.dt, self.accel_var, dims=len(z))
-        self.F = Fm[:2, :2]
-        self.Q = np.stack([Q[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] for i in range(len(z))])
-        self.x = np.column_stack([z, np.zeros_like(z)])
-        self.P = np.zeros((len(z), 2, 2))
-        self.P[:, 0, 0] = var
-        self.P[:, 1, 1] = np.maximum(var, self.accel_var) * 10.0
-
-    def step(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
-        """Fuse one frame's GP prediction (mean and std per angle); return the filtered state."""
-        z = np.asarray(mean, dtype=float).ravel()
-        var = np.maximum(np.asarray(std, dtype=float).ravel() ** 2, 1e-9)
-        if len(z) != len(self.accel_var):
-            raise InputError(f"expected {len(self.accel_var)} angles, got {len(z)}")
-        if self.x is None:
-            self._start(z, var)
-            return z.copy(), np.sqrt(var) * self.filter_std
-        # predict (Eq. 3.6), then update with the GP's mean as the measurement of the angle and
-        # its variance as R (Eq. 3.7); the covariance in Joseph form (it stays symmetric positive)
-        x = self.x @ self.F.T
-        P = self.F @ self.P @ self.F.T + self.Q
-        K = P[:, :, 0] / (P[:, 0, 0] + var)[:, None]
-        self.x = x + K * (z - x[:, 0])[:, None]
-        I_KH = np.tile(np.eye(2), (len(z), 1, 1))
-        I_KH[:, :, 0] -= K
-        self.P = I_KH @ P @ I_KH.transpose(0, 2, 1) + var[:, None, None] * (K[:, :, None] * K[:, None, :])
-        return self.x[:, 0].copy(), np.sqrt(self.P[:, 0, 0]) * self.filter_std
-
-    def _forward(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
-        """The forward pass over a sequence: every frame's filtered state and covariance."""
-        mean = np.atleast_2d(np.asarray(mean, dtype=float))
-        std = np.atleast_2d(np.asarray(std, dtype=float))
-        self.reset()
-        T, k = mean.shape
-        xs, Ps = np.empty((T, k, 2)), np.empty((T, k, 2, 2))
-        for t in range(T):
-            self.step(mean[t], std[t])
-            assert self.x is not None  # set by the first step
-            xs[t], Ps[t] = self.x, self.P
-        return xs, Ps
-
-    def _backward(self, xs: np.ndarray, Ps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The Rauch-Tung-Striebel backward pass over :meth:`_forward`'s states: means and
-        standard deviations (not yet multiplied by ``smooth_std``)."""
-        T = len(xs)
-        out, sd = np.empty(xs.shape[:2]), np.empty(xs.shape[:2])
-        if T == 0:
-            return out, sd
-        x, P = xs[-1], Ps[-1]
-        out[-1], sd[-1] = x[:, 0], np.sqrt(P[:, 0, 0])
-        for t in range(T - 2, -1, -1):
-            Pp = self.F @ Ps[t] @ self.F.T + self.Q  # the prediction of frame t + 1 from frame t
-            G = Ps[t] @ self.F.T @ np.linalg.inv(Pp)
-            x = xs[t] + (G @ (x - xs[t] @ self.F.T)[:, :, None])[:, :, 0]
-            P = Ps[t] + G @ (P - Pp) @ G.transpose(0, 2, 1)
-            out[t], sd[t] = x[:, 0], np.sqrt(np.maximum(P[:, 0, 0], 0.0))
-        return out, sd
-
-    def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
-        xs, Ps = self._forward(mean, std)
-        return xs[:, :, 0].copy(), np.sqrt(Ps[:, :, 0, 0]) * self.filter_std
-
-    def smooth(self, mean, std, frames=None) -> tuple[np.ndarray, np.ndarray]:
-        """Offline: every frame's estimate from the whole sequence, past and future frames — the
-        forward filter, then the Rauch-Tung-Striebel backward pass (for a recorded video; the
-        forward :meth:`filter` is the real-time one).
-
-        ``frames``: the rows' frame numbers (increasing; None: consecutive). A frame missing
-        between two rows (a track that lost its box) is a step of the motion model without a
-        measurement, so the prior bridges the gap as far as it deserves, instead of taking the
-        rows on either side for neighbours."""
-        mean = np.atleast_2d(np.asarray(mean, dtype=float))
-        std = np.atleast_2d(np.asarray(std, dtype=float))
-        if frames is not None:
-            frames = np.asarray(frames)
-            if len(frames) != len(mean) or np.any(np.diff(frames) < 1):
-                raise InputError("frames must number the rows, increasing")
-            if len(frames) and frames[-1] - frames[0] + 1 > len(frames):
-                at = frames - frames[0]
-                full_mean = np.zeros((at[-1] + 1, mean.shape[1]))
-                full_std = np.full_like(full_mean, 1e12)  # no measurement: K ≈ 0
-                full_mean[at], full_std[at] = mean, std
-                out, sd = self.smooth(full_mean, full_std)
-                return out[at], sd[at]
-        out, sd = self._backward(*self._forward(mean, std))
-        return out, sd * self.smooth_std
 
 
 class PoseRegressor:

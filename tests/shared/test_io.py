@@ -162,5 +162,25 @@ def test_check_writable_refuses_devices_pipes_and_inputs(tmp_path):
         check_writable(tmp_path / "link.txt", inputs=(src,))
     with pytest.raises(InputError, match="two outputs"):
         check_writable(tmp_path / "a.txt", tmp_path / "./a.txt")
-    check_writable(tmp_path / "a.txt", tmp_path / "b.txt", inputs=(src, tmp_path))  # a folder input: fine
     assert src.read_text().startswith("1,")
+
+
+def test_an_output_inside_an_input_folder_is_refused(tmp_path):
+    """An output in a folder of input frames would replace a frame or become one more frame; next
+    to the folder it is fine."""
+    from artmotion.io import check_apart, check_writable
+
+    frames = tmp_path / "frames"
+    (frames / "sub").mkdir(parents=True)
+    (frames / "000001.png").write_bytes(b"png")
+    for out in (frames / "000001.png", frames / "new.png", frames / "sub" / "x.csv", frames, frames / "sub" / ".."):
+        with pytest.raises(InputError, match="inside the input folder"):
+            check_writable(out, inputs=(None, frames))
+        with pytest.raises(InputError, match="inside the input folder"):
+            check_apart(out, (frames,))
+    (tmp_path / "link").symlink_to(frames)
+    with pytest.raises(InputError, match="inside the input folder"):
+        check_apart(tmp_path / "link" / "a.png", (frames,))
+    check_writable(tmp_path / "frames.csv", tmp_path / "framesx" / "a.png", inputs=(frames,))
+    check_apart(tmp_path / "out", (frames, tmp_path / "frames.csv"))  # a file input is no folder
+    assert (frames / "000001.png").read_bytes() == b"png"

@@ -4,11 +4,13 @@ the same readers with many more damaged inputs."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
 import shutil
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
@@ -196,7 +198,7 @@ def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
     (["slam", "simulate", "--seed", "-1", "--runs", "1", "--steps", "5"], "--seed"),
     (["grounding", "dataset", "{tmp}/g", "--seed", "-1"], "--seed"),
     (["grounding", "eval", "{tmp}/g", "--seed", "-1"], "--seed"),
-    (["pose", "train", "{tmp}", "{tmp}/l.csv", "--model", "{tmp}/m.npz", "--seed", "-1"], "--seed"),
+    (["pose", "train", "{tmp}/crops", "{tmp}/l.csv", "--model", "{tmp}/m.npz", "--seed", "-1"], "--seed"),
     (["slam", "simulate", "--landmarks", "1000000", "--runs", "1", "--steps", "5"], "--landmarks"),
     (["articulation", "fit", "{traj}", "--max-radius", "-1"], "--max-radius"),
     (["articulation", "fit", "{traj}", "--min-samples", "1000000000"], "--min-samples"),
@@ -269,6 +271,30 @@ def test_3_pose_outputs_never_replace_their_inputs(tmp_path, model):
     code, _, err = call("pose", "train", crops, labels, "--model", labels)
     assert_one_line_error(code, err, "labels.csv", "is also an input")
     assert labels.read_text() == "image,a\na.png,1\n"
+    frame = (crops / "a.png").read_bytes()
+    for args in (("predict", m, crops, "--out", crops / "a.png"), ("train", crops, labels, "--model", crops / "a.png"),
+                 ("eval", crops, labels, "--out", crops / "eval")):
+        code, _, err = call("pose", *args)
+        assert_one_line_error(code, err, "inside the input folder")
+    assert (crops / "a.png").read_bytes() == frame and sorted(p.name for p in crops.iterdir()) == ["a.png"]
+
+
+def test_3_outputs_stay_out_of_the_frames_folder(tmp_path):
+    """``track --out`` over a frame of the sequence, ``run --out`` into its frames folder: one line,
+    exit 2, the frames as they were (the code before replaced the frame and exited 0); an output
+    next to the frames, in the sequence's own folder, is fine."""
+    seq = inp.sequence(tmp_path / "seq")
+    first = seq / "img1" / "000001.jpg"
+    before = first.read_bytes()
+    code, _, err = call("track", seq, "--out", first)
+    assert_one_line_error(code, err, "000001.jpg", "inside the input folder")
+    code, _, err = call("run", seq, "--out", seq / "img1", "--no-video")
+    assert_one_line_error(code, err, "img1", "inside the input folder")
+    code, _, err = call("articulation", "video", seq / "img1", "--out", seq / "img1" / "parts")
+    assert_one_line_error(code, err, "inside the input folder")
+    assert first.read_bytes() == before and len(list((seq / "img1").iterdir())) == inp.N
+    code, _, err = call("track", seq, "--out", seq / "tracks.txt")
+    assert code == 0, err
 
 
 def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
@@ -375,6 +401,12 @@ def test_3_damaged_index_is_one_line(tmp_path):
             code, _, err = call(*args, "--db", path)
             assert_one_line_error(code, err, path.name, "damaged index")
         assert path.read_bytes() == before
+    text = tmp_path / "text.sqlite"     # sound pages, a frame number that is text (the code before printed it)
+    text.write_bytes(data)
+    with contextlib.closing(sqlite3.connect(text)) as conn, conn:
+        conn.execute("UPDATE sentences SET frame_start = 'abc'")
+    code, _, err = call("search", "person exits", "--db", text)
+    assert_one_line_error(code, err, "text.sqlite", "damaged index")
 
 
 def test_3_scheduler_that_is_no_dask_scheduler_is_one_line(tmp_path):
@@ -663,6 +695,13 @@ def test_7_native_library_messages_stay_off_stderr(tmp_path):
     det.write_text("\n".join(inp.det_rows(20)) + "\n")
     res = _cli("track", half, "--det", det)
     assert_one_line_error(res.returncode, res.stderr, "half.avi")
+    data = bytearray(avi.read_bytes())
+    data[12:16] = b"JUNK"     # OpenCV's AVI reader prints "Unexpected element. Expected: LIST. Got: JUNK."
+    bad = tmp_path / "bad.avi"
+    bad.write_bytes(bytes(data))
+    for args in (("track", bad, "--det", det), ("articulation", "video", bad)):
+        res = _cli(*args)
+        assert_one_line_error(res.returncode, res.stderr, "bad.avi", "cannot open video")
 
 
 # -- 8. interruption -------------------------------------------------------------------------------

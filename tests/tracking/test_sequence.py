@@ -142,11 +142,25 @@ def _video(path, frames, fourcc="MJPG"):
     return path
 
 
-def test_truncated_video_is_an_error(tmp_path):
+@pytest.mark.parametrize("cut", [16, 0.5])
+def test_truncated_video_is_an_error(tmp_path, cut):
+    """An AVI cut short of the size its header declares: OpenCV plays the frames left (all of
+    them when only the index at the end is cut) and says nothing."""
     frames, _ = moving_blob(n=40)
     video = _video(tmp_path / "clip.avi", frames)
     data = video.read_bytes()
-    video.write_bytes(data[: len(data) // 2])
+    video.write_bytes(data[: len(data) - (cut if isinstance(cut, int) else int(len(data) * cut))])
+    with pytest.raises(InputError, match=r"clip\.avi: truncated: \d+ of the \d+ bytes its header declares"):
+        open_sequence(video)
+
+
+def test_a_video_that_ends_early_is_an_error(tmp_path):
+    """Frames that do not decode at the end of a video whose header counts 40."""
+    frames, _ = moving_blob(n=40)
+    video = _video(tmp_path / "clip.avi", frames)
+    data = bytearray(video.read_bytes())
+    data[len(data) // 2: -2000] = bytes(len(data) // 2 - 2000)
+    video.write_bytes(bytes(data))
     seq = open_sequence(video)
     assert seq.length == 40                          # the header still says 40
     with pytest.raises(InputError, match=r"clip\.avi: video ends after \d+ of its 40 frames"):

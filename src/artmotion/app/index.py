@@ -283,7 +283,7 @@ class EventIndex:
             hits = self._structured(q, video) if q.structured else []
             if not hits and (q.unknown or not q.structured):
                 hits = self._fulltext(text, video)
-        hits.sort(key=lambda h: (-h.score, h.video, h.frame_start))
+        hits.sort(key=lambda h: (-h.score, h.video, h.frame_start or 0))
         return hits[:limit]
 
     def _rows(self, video: str | None, where: str = "", params: tuple = ()):
@@ -294,7 +294,11 @@ class EventIndex:
         if video is not None:
             sql += " AND v.name = ?"
             params = (video,) + params
-        return self.conn.execute(sql + where, params).fetchall()
+        rows = self.conn.execute(sql + where, params).fetchall()
+        for row in rows:   # SQLite keeps whatever a column was given: a damaged index, not a wrong answer
+            if not isinstance(row[3], str) or any(type(f) is not int and f is not None for f in row[8:10]):
+                raise TypeError("a sentence or its frames of the wrong type")
+        return rows
 
     def _structured(self, q: Query, video: str | None) -> list[Hit]:
         """Every asked-for verb and track id must hold; direction and subject add to the score."""

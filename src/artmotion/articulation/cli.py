@@ -95,6 +95,9 @@ def video(
         check_range("--focal", focal, 0.0, 1e7, lo_open=True)
     check_range("--max-parts", max_parts, 1, 20, integer=True)
     check_seed(seed)
+    from artmotion.io import check_apart
+
+    check_apart(out, (source,))
     snapshots = 4 if out is not None else 0
     if sys.stderr.isatty():
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn

@@ -53,14 +53,33 @@ def _prepare(path: str | os.PathLike) -> Path:
     return path
 
 
+def _within(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
+    """``path`` is ``folder`` or lies somewhere inside it (links resolved)."""
+    inner, outer = Path(os.path.realpath(path)), Path(os.path.realpath(folder))
+    return inner == outer or outer in inner.parents
+
+
+def check_apart(path: str | os.PathLike | None, inputs: Iterable[str | os.PathLike | None] = ()) -> None:
+    """An :class:`InputError` when the output ``path`` (a file or a folder) lies in a folder among
+    the command's ``inputs`` (a folder of frames or crops): it would replace one of them or become
+    one more, read the next time."""
+    if path is None:
+        return
+    for q in inputs:
+        if q is not None and os.path.isdir(q) and _within(path, q):
+            raise InputError(f"is inside the input folder {q}: write the output elsewhere", path=path)
+
+
 def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.PathLike | None] = ()) -> None:
     """Before long work: an :class:`InputError` naming the first output ``path`` (``None``s are
     skipped) that cannot be written — an existing folder where a file goes, a device or pipe, a
     parent that is a file or not writable, the same file as another output or as one of the
-    command's ``inputs`` (its rename would destroy the input) — without creating anything."""
+    command's ``inputs`` (its rename would destroy the input), a file inside an input folder
+    (:func:`check_apart`) — without creating anything."""
     given = [Path(p) for p in paths if p is not None]
     sources = [q for q in inputs if q is not None]
     for k, path in enumerate(given):
+        check_apart(path, sources)
         if path.is_dir():
             raise InputError("is a folder, not a file", path=path)
         error = _not_regular(path)

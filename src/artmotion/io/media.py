@@ -15,7 +15,9 @@ here:
   made the error. What even the decoder cannot see (a flipped bit that changes one coefficient)
   is not caught.
 * :func:`check_video` recognises a video container by its first bytes (MP4/MOV, AVI, Matroska/
-  WebM, MPEG, FLV, ASF/WMV, Ogg) and refuses images and anything else.
+  WebM, MPEG, FLV, ASF/WMV, Ogg) and refuses images and anything else, and an AVI shorter than
+  its header declares (OpenCV plays a cut AVI's remaining frames and says nothing).
+  :func:`open_capture` opens it with the AVI reader's own messages kept off stderr.
 
 * :func:`write_image` encodes an image in memory and writes it atomically (a full disk is an
   error naming the file, not a codec's message); :func:`check_written_video` reads back a video
@@ -29,11 +31,13 @@ File types are named here once (:data:`IMAGE_EXTS`, :data:`VIDEO_EXTS`) for ever
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import tempfile
 import threading
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -202,43 +206,68 @@ stderr_lock = threading.Lock()
 _capture = threading.local()
 
 
+@contextlib.contextmanager
+def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
+    """Point the file descriptor 2 at a scratch file while the block runs (native code writes
+    there, out of Python's reach); the yielded list then holds the lines written meanwhile. Lines
+    that start with one of ``native`` are the library's and are kept off stderr; anything else
+    (another thread's) is passed on."""
+    said: list[str] = []
+    try:
+        with stderr_lock:
+            scratch = getattr(_capture, "file", None)
+            if scratch is None:
+                scratch = _capture.file = tempfile.TemporaryFile()
+            scratch.seek(0)
+            scratch.truncate()
+            try:
+                sys.stderr.flush()
+                saved = os.dup(2)
+            except (OSError, ValueError, AttributeError):     # no stderr to redirect: run as is
+                saved = None
+            if saved is not None:
+                os.dup2(scratch.fileno(), 2)
+            try:
+                yield said
+            finally:
+                if saved is not None:
+                    os.dup2(saved, 2)
+                    os.close(saved)
+                scratch.seek(0)
+                said += scratch.read().decode("utf-8", "replace").splitlines()
+    finally:
+        other = [line for line in said if line.strip() and not line.startswith(native)]
+        if other:
+            os.write(2, ("\n".join(other) + "\n").encode())
+
+
 def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]:
     """``cv2.imdecode`` and the first damage its codec reported meanwhile (``None`` if none).
 
     libjpeg warns about corrupt data it decodes around ("Corrupt JPEG data: 67 extraneous bytes
-    before marker 0xd9") only on the process's stderr, and OpenCV returns the image: the file
-    descriptor 2 is pointed at a scratch file while the image decodes, and what the codec says is
-    read back. Anything else written to stderr meanwhile (another thread's) is passed on."""
+    before marker 0xd9") only on the process's stderr, and OpenCV returns the image: what the
+    codec says while the image decodes is captured (:func:`_stderr_captured`) and read back."""
     import cv2
 
-    with stderr_lock:
-        scratch = getattr(_capture, "file", None)
-        if scratch is None:
-            scratch = _capture.file = tempfile.TemporaryFile()
-        scratch.seek(0)
-        scratch.truncate()
-        try:
-            sys.stderr.flush()
-            saved = os.dup(2)
-        except (OSError, ValueError, AttributeError):     # no stderr to redirect: decode as is
-            saved = None
-        if saved is not None:
-            os.dup2(scratch.fileno(), 2)
+    with _stderr_captured(_CODEC) as said:
         try:
             img = cv2.imdecode(buf, flags)
         except cv2.error:                                  # beyond OpenCV's limits (pixels, size)
             img = None
-        finally:
-            if saved is not None:
-                os.dup2(saved, 2)
-                os.close(saved)
-        scratch.seek(0)
-        said = scratch.read().decode("utf-8", "replace").splitlines()
-    damage = next((line.strip() for line in said if line.startswith(_DAMAGE)), None)
-    other = [line for line in said if line.strip() and not line.startswith(_CODEC)]
-    if other:
-        os.write(2, ("\n".join(other) + "\n").encode())
-    return img, damage
+    return img, next((line.strip() for line in said if line.startswith(_DAMAGE)), None)
+
+
+#: what OpenCV's own AVI reader prints on a damaged file (with ``fprintf``, past its log level)
+_CONTAINER = ("Unexpected element",)
+
+
+def open_capture(path: str | os.PathLike):
+    """``cv2.VideoCapture(path)``, its container parser's messages kept off stderr (a damaged AVI
+    prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error)."""
+    import cv2
+
+    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER):
+        return cv2.VideoCapture(os.fspath(path))
 
 
 #: first bytes of video containers: (offset, bytes)
@@ -263,6 +292,13 @@ def check_video(path: str | os.PathLike) -> Path:
         raise InputError("is an image, not a video", path=path)
     if head[:4] == b"RIFF" and head[8:12] not in (b"AVI ", b"AVIX"):
         raise InputError("not a video (a RIFF file that is not AVI)", path=path)
+    if head[:4] == b"RIFF":
+        # an AVI declares its first RIFF chunk's size: a file cut short of it lost its end (the
+        # frames there, the index); OpenCV plays what is left and says nothing
+        declared = int.from_bytes(head[4:8], "little") + 8
+        size = path.stat().st_size
+        if size < declared:
+            raise InputError(f"truncated: {size} of the {declared} bytes its header declares", path=path)
     mpeg_ts = head[:1] == b"\x47" and path.suffix.lower() in (".ts", ".mts", ".m2ts")
     if not mpeg_ts and not any(head[o:o + len(m)] == m for o, m in _VIDEO_MAGIC):
         kind = f" (extension {path.suffix})" if path.suffix else ""
@@ -290,7 +326,7 @@ def check_written_video(path: str | os.PathLike, frames: int, where: str | os.Pa
     writer drops frames silently when the disk is full. ``where`` names it in the message."""
     import cv2
 
-    cap = cv2.VideoCapture(os.fspath(path))
+    cap = open_capture(path)
     try:
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
     finally:

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import IMAGE_EXTS, MAX_FPS, MIN_FPS, VIDEO_EXTS, check_video, read_image
+from artmotion.io.media import IMAGE_EXTS, MAX_FPS, MIN_FPS, VIDEO_EXTS, check_video, open_capture, read_image
 from artmotion.io.mot import MAX_FRAME
 
 DEFAULT_FPS = 25.0
@@ -69,6 +69,11 @@ class Sequence:
     def __len__(self) -> int:
         return self.length
 
+    @property
+    def folder(self) -> Path | None:
+        """The folder the frames are read from (``None`` for a video): outputs stay out of it."""
+        return self.images[0].parent if self.images else None
+
     def __repr__(self) -> str:
         return (f"Sequence({self.name!r}, {self.length} frames, {self.width}x{self.height}, "
                 f"{self.fps:g} fps)")
@@ -100,7 +105,8 @@ class Sequence:
                         f"{self.width}x{self.height}", path=p)
                 yield i, img
             return
-        cap = cv2.VideoCapture(str(self.video))
+        assert self.video is not None  # (a sequence is frames or a video)
+        cap = open_capture(self.video)
         if not cap.isOpened():
             raise InputError("cannot open video", path=self.video)
         try:
@@ -189,7 +195,7 @@ def prefetched(items: Iterator, depth: int) -> Iterator:
 def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
     """Frame rate (``None`` if the file does not say), width, height and frame count of a video."""
     check_video(video)
-    cap = cv2.VideoCapture(str(video))
+    cap = open_capture(video)
     try:
         if not cap.isOpened():
             raise InputError("cannot open video (broken or unsupported)", path=video)

@@ -103,7 +103,7 @@ def train_cmd(
     if len({b is None for _, _, b in seqs}) > 1:
         raise InputError("boxes for some training sequences but not for all: "
                          + ", ".join(str(i) for i, _, b in seqs if b is None) + " have none")
-    check_writable(model, inputs=[f for _, lab, b in seqs for f in (lab, b)])
+    check_writable(model, inputs=[f for seq in seqs for f in seq])
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
     check_range("--inducing-var", inducing_var, 0, 1_000_000, integer=True)
@@ -153,7 +153,7 @@ def predict_cmd(
     from artmotion.pose.data import list_images, read_images, write_predictions
     from artmotion.pose.model import PoseRegressor, is_foreign
 
-    check_writable(out, inputs=(model, boxes))
+    check_writable(out, inputs=(model, boxes, images))
     reg = PoseRegressor.load(model)
     paths = list_images(images)
     views = _views(boxes, paths)
@@ -207,6 +207,9 @@ def eval_cmd(
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     check_range("--folds", folds, 2, 1000, integer=True)
+    from artmotion.io import check_apart
+
+    check_apart(out, (images, test_images, dark_images))
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     views = _views(boxes, paths)

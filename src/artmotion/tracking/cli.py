@@ -71,7 +71,7 @@ def track_command(
     seq = open_sequence(source)  # (opened once: track() takes it as it is)
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
-    check_writable(out, events, video, inputs=(source, det or seq.det_path))
+    check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path))
     if progress is None:
         progress = sys.stderr.isatty()
     res = track(seq, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,

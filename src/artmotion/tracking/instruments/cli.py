@@ -49,7 +49,7 @@ def train(
     check_seed(seed)
     from artmotion.io import check_writable
 
-    check_writable(model, inputs=(tools_csv,))  # before the training
+    check_writable(model, inputs=(tools_csv, frames))  # before the training
     from artmotion.tracking.instruments.detector import ToolDetector, need_torch
 
     need_torch()
@@ -94,7 +94,7 @@ def track(
     from artmotion.io import check_writable
     from artmotion.tracking.instruments.annotations import write_predictions
 
-    check_writable(out, inputs=(model,))
+    check_writable(out, inputs=(model, source))
     if threshold is not None:
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     from artmotion.tracking.instruments.detector import ToolDetector

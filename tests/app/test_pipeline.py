@@ -117,6 +117,43 @@ def test_batch_isolates_failures_and_resumes(tmp_path, monkeypatch):
         assert len(idx.videos()) == 3
 
 
+def test_batch_skips_only_runs_it_finished(tmp_path, run_cli):
+    """A run.json that is not a manifest (the user's own file, an empty one) is no finished run:
+    the code before skipped the item as "already finished" and exited 0. Here the item fails,
+    naming the file, which stays as it was."""
+    from conftest import SAMPLE
+
+    archive = tmp_path / "archive"
+    archive.mkdir()
+    small_sequence(SAMPLE, archive / "a")
+    small_sequence(SAMPLE, archive / "b")
+    out = tmp_path / "runs"
+    (out / "a").mkdir(parents=True)
+    (out / "a" / "run.json").write_text('{"my": "own config"}')
+    (out / "b").mkdir()
+    (out / "b" / "run.json").write_text("")
+    code, stdout, err = run_cli("batch", archive, "--out", out, "--workers", 1)
+    assert code == 2 and "0 done, 0 skipped, 2 failed" in stdout, (stdout, err)
+    assert err.count("not written by this command") == 2, err
+    assert (out / "a" / "run.json").read_text() == '{"my": "own config"}' and (out / "b" / "run.json").read_text() == ""
+
+
+@pytest.mark.parametrize("inside", ["a", "."])
+def test_batch_output_inside_an_item_is_one_line(tmp_path, run_cli, inside):
+    """``--out`` inside an item's folder (the other items' runs would land among its frames) or the
+    archive itself (each item's run folder would be the item): one line before any work."""
+    from conftest import SAMPLE
+
+    archive = tmp_path / "archive"
+    archive.mkdir()
+    small_sequence(SAMPLE, archive / "a")
+    small_sequence(SAMPLE, archive / "b")
+    before = sorted(p.relative_to(archive) for p in archive.rglob("*"))
+    code, _, err = run_cli("batch", archive, "--out", archive / inside, "--workers", 1)
+    assert code == 2 and err.count("\n") == 1 and "inside the input folder" in err, err
+    assert sorted(p.relative_to(archive) for p in archive.rglob("*")) == before
+
+
 def test_batch_cli_reports_failures(tmp_path, run_cli):
     archive = tmp_path / "a"
     archive.mkdir()

@@ -82,6 +82,7 @@ def test_too_few_samples_is_undecided(tmp_path, run_cli):
     ("0,0,0\n0.1,,0.2\n", "f.txt:2: empty field"),      # not the point (0.1, 0.2): the rest would shift
     ("0;0;0\n;0.1;0.2\n", "f.txt:2: empty field"),
     ("0 0 0\n1_0 1 1\n", "f.txt:2: not a number"),     # Python's float() reads 1_0 as ten
+    ("0.3x 0 0\n0 0 0\n1 1 1\n", "f.txt:1: not a number"),  # a damaged first row, not a header to skip
 ])
 def test_bad_input_is_one_line(tmp_path, run_cli, content, needle):
     p = tmp_path / "f.txt"

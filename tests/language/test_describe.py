@@ -200,6 +200,14 @@ def test_cli_describe_bad_input(tmp_path, run_cli):
     assert code == 2 and "--size" in err
     code, out, err = run_cli("describe", res, "--class", "3=")
     assert code == 2 and "--class" in err
+    last = int(scene()[:, 0].max())
+    pose.write_text("image,opening,opening_std\n" + "".join(f"{last + k:06d}.png,{10 * k},1\n" for k in range(1, 21)))
+    code, out, err = run_cli("describe", res, "--pose", pose)    # (the code before: "Tool closes at frame ...")
+    assert code == 2 and "PRED.csv" in err and "not within the results' frames" in err and err.count("\n") == 1
+    dup = tmp_path / "dup.txt"    # the second box of a track on a frame was dropped unsaid
+    dup.write_text("1,1,10,10,20,20,1,-1,-1,-1\n1,1,50,10,20,20,1,-1,-1,-1\n")
+    code, out, err = run_cli("describe", dup)
+    assert code == 2 and "dup.txt" in err and "id 1 appears more than once in frame 1" in err
 
 
 def test_parse_classes():

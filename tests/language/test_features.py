@@ -91,3 +91,8 @@ def test_bad_audio_is_an_input_error(tmp_path):
         audio_feature(silent)
     with pytest.raises(InputError, match="no such file"):
         audio_feature(tmp_path / "nope.wav")
+    cut = tmp_path / "cut.wav"     # libsndfile reads the third that is left without a word
+    sf.write(cut, tone(16000), 16000)
+    cut.write_bytes(cut.read_bytes()[: cut.stat().st_size // 3])
+    with pytest.raises(InputError, match=r"cut.wav: truncated: \d+ of the \d+ bytes its header declares"):
+        audio_feature(cut)

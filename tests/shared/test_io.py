@@ -87,6 +87,11 @@ def test_events_roundtrip_and_validation(tmp_path):
     bad2 = write(tmp_path, "not json\n", "bad2.jsonl")
     with pytest.raises(InputError, match="not JSON"):
         read_events(bad2)
+    # (the code before read them, and describe said "Person 1 and person 1 merge")
+    for line, needle in (('{"type": "merge", "frame": 3, "tracks": [1, 1]}', "names a track twice"),
+                         ('{"type": "split", "frame": 3, "tracks": [1]}', "a split is of two tracks or more")):
+        with pytest.raises(InputError, match=needle):
+            read_events(write(tmp_path, line + "\n", "bad3.jsonl"))
 
 
 def test_kl_matrix_is_kl_divergence_exactly():

@@ -205,6 +205,8 @@ def test_3_damaged_pose_model_is_one_line(tmp_path, model, kind):
     (["batch", "{tmp}", "--scheduler", "not a url"], "not a url"),
     (["batch", "{tmp}", "--workers", str(4 * (os.cpu_count() or 1) + 1)], "--workers"),  # processes, not a queue
     (["batch", "{tmp}", "--out", "{traj}"], "is not a folder"),  # one line up front, not one per item
+    (["run", "{tmp}", "--class", "!!"], "--class '!!'"),        # the code before said "!! 1 stays in place"
+    (["run", "{tmp}", "--class", "3=cart"], "one NAME"),
 ])
 def test_3_bad_options_are_one_line(tmp_path, args, needle):
     traj = tmp_path / "arc.txt"
@@ -372,6 +374,27 @@ def test_3_manifest_numbers_out_of_range_are_refused(tmp_path, field, value):
     folder = inp.run_folder(tmp_path / "run", run)
     code, _, err = call("index", "add", folder, "--db", tmp_path / "db.sqlite")
     assert_one_line_error(code, err, "run.json", "corrupt manifest")
+    assert not (tmp_path / "db.sqlite").exists()
+
+
+@pytest.mark.parametrize("change, needle", [
+    (lambda r: r["track_summary"].append(dict(r["track_summary"][0])), "track 1 twice"),
+    (lambda r: r["track_summary"][0].update(first_frame=50, last_frame=1), "boxes in frames 50-1"),
+    (lambda r: r["track_summary"][0].update(boxes=999), "999 boxes in frames 1-50"),
+    (lambda r: r["track_summary"][0].update(last_frame=9999), "after the sequence's 50 frames"),
+    (lambda r: r["sentences"][0].update(frame_start=50, frame_end=1), "ends (frame 1) before it begins"),
+    (lambda r: r["sentences"][0].update(tracks=[424242]), "'sentences' item 1 names track 424242"),
+    (lambda r: r["events"][0].update(tracks=[424242]), "'events' item 1 names track 424242"),
+    (lambda r: r.update(name="cam\ud800"), "lone surrogate"),
+])
+def test_3_a_manifest_that_contradicts_itself_is_refused(tmp_path, change, needle):
+    """Types right, contents impossible: the code before indexed them (``search`` then said
+    "frames 50-1"), or called the index damaged (a track id twice, a lone surrogate)."""
+    run = inp.manifest()
+    change(run)
+    folder = inp.run_folder(tmp_path / "run", run)
+    code, _, err = call("index", "add", folder, "--db", tmp_path / "db.sqlite")
+    assert_one_line_error(code, err, "run.json", "corrupt manifest", needle)
     assert not (tmp_path / "db.sqlite").exists()
 
 

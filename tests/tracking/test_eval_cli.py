@@ -81,11 +81,17 @@ def test_missing_file_and_bad_threshold(run_cli, files, tmp_path):
 
 def test_unknown_mot17_class_under_mot17_rules(run_cli, tmp_path):
     """A class MOT16/17 does not know (99) is an error under ``--rules mot17``, as in TrackEval, not
-    a silently ignored box; with ``auto`` such a file is read as MOT15 (no class column)."""
+    a silently ignored box; ``auto`` takes 9-column ground truth for MOT16/17's (the code before
+    read it as MOT15's when one class was unknown, and scored distractors as false positives)."""
     gt = tmp_path / "gt.txt"
     gt.write_text("1,1,10,10,20,40,1,99,1\n2,1,10,10,20,40,1,1,1\n")
-    code, out, err = run_cli("eval", gt, gt, "--rules", "mot17")
-    assert code == 2 and out == "" and "gt.txt: class 99 (frame 1) is not a MOT16/17 class" in err
+    for rules in ("mot17", "auto"):
+        code, out, err = run_cli("eval", gt, gt, "--rules", rules)
+        assert code == 2 and out == "" and "gt.txt: class 99 (frame 1) is not a MOT16/17 class" in err
+    gt.write_text("1,1,10,10,20,40,1,7,1\n2,1,10,10,20,40,1,1,1\n")      # 7: a static person (distractor)
+    code, out, err = run_cli("eval", gt, gt, "--json")
+    assert code == 0 and '"rules": "mot17"' in out and '"FP": 0' in out, out
+    gt.write_text("1,1,10,10,20,40,1,7,1,-1\n2,1,10,10,20,40,1,1,1,-1\n")  # 10 columns: MOT15's world coordinates
     code, out, err = run_cli("eval", gt, gt, "--json")
     assert code == 0 and '"rules": "mot15"' in out
     gt.write_text("1,1,10,10,20,40,1\n")  # MOT15's 7 columns: no class column to apply MOT17's rules to

@@ -76,6 +76,26 @@ def test_missing_frame_is_out_of_order(mot_folder):
         open_sequence(mot_folder)
 
 
+def test_an_unnumbered_image_among_frames_is_an_error(mot_folder):
+    """The code before sorted by name when any image had no number: a missing frame went unseen
+    and thumb.png became the last frame."""
+    (mot_folder / "img1" / "000003.png").unlink()
+    shutil.copy(mot_folder / "img1" / "000001.png", mot_folder / "img1" / "thumb.png")
+    with pytest.raises(InputError, match=r"img1: 5 images are numbered frames and 1 are not \(e.g. thumb.png\)"):
+        open_sequence(mot_folder / "img1")
+
+
+@pytest.mark.parametrize("size", [(W + 1, H), (W, H - 1)])
+def test_a_frame_one_pixel_off_is_an_error(mot_folder, size):
+    """At full size every frame has the sequence's size exactly (the code before let 1 px pass,
+    for the rounding of reduced decoding, and the video writer or KLT failed later)."""
+    p = mot_folder / "img1" / "000004.png"
+    cv2.imwrite(str(p), cv2.resize(cv2.imread(str(p)), size))
+    seq = open_sequence(mot_folder)
+    with pytest.raises(InputError, match=rf"000004\.png: image size {size[0]}x{size[1]} differs from the sequence's "):
+        list(seq.frames())
+
+
 def test_frame_count_disagrees_with_seqinfo(mot_folder):
     shutil.copy(mot_folder / "img1" / "000006.png", mot_folder / "img1" / "000007.png")
     with pytest.raises(InputError, match="seqinfo.ini says 6 frames"):

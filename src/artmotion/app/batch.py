@@ -18,6 +18,7 @@ from typing import Any
 
 from artmotion.app.pipeline import is_finished
 from artmotion.errors import ArtmotionError, InputError, Interrupted
+from artmotion.io import check_apart
 from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS
 
 
@@ -262,9 +263,13 @@ def run_batch(
     if os.path.lexists(out) and not out.is_dir():  # one error now, not one per item later
         raise InputError("is not a folder: the batch writes a run folder per item in it", path=out)
     items = find_items(root)
+    outs = item_dirs(items, out)
+    check_apart(out, items)          # one error now, not one per item later (nor runs in an item's folder)
+    for item_path, item_out in zip(items, outs):
+        check_apart(item_out, (item_path,))
     report = BatchReport()
     todo: list[tuple[str, str]] = []
-    for item_path, item_out in zip(items, item_dirs(items, out)):
+    for item_path, item_out in zip(items, outs):
         if not force and is_finished(item_out):
             report.outcomes.append(ItemOutcome(str(item_path), "skipped", str(item_out), message="already finished"))
         else:

@@ -178,9 +178,14 @@ def run_pipeline(
     on every ``detect_every``-th frame. ``tool_model`` (from ``artmotion tool train``): track
     surgical instruments with it instead of people; their entries and exits come from the tracks.
     """
+    from artmotion.language.describe import parse_classes
     from artmotion.tracking import open_sequence
 
     t0 = time.perf_counter()
+    word, per_track = parse_classes([object_class])   # the word the sentences name, checked as describe's
+    if per_track:
+        raise InputError(f"--class {object_class!r}: run takes one NAME for every track")
+    object_class = word
     seq = open_sequence(source)
     # everything that can be checked is checked before the long work: the pose model (loaded and
     # tried on a crop), the ground truth
@@ -191,10 +196,12 @@ def run_pipeline(
 
         tools = ToolDetector.load(tool_model)
     gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
+    rules = "auto"
     if gt is not None:
-        from artmotion.tracking.metrics import check_ids
+        from artmotion.tracking.metrics import check_ids, check_rules, columns_of
 
         check_ids(gt, "ground truth", seq.gt_path)  # before the tracking, naming the file
+        rules = check_rules(gt, rules, columns_of(seq.gt_path), seq.gt_path)
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     check_apart(out, (seq.folder,))
@@ -206,7 +213,7 @@ def run_pipeline(
         else:
             detection = {"det": det, "detector": detector, "detect_every": detect_every}
             manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress,
-                                         video, pose, gt)
+                                         video, pose, gt, rules)
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
@@ -225,7 +232,7 @@ _is_run = outputs_of(MANIFEST, RUN_FILES, ("files", "sentences"))
 
 
 def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_class: str, experts,
-              progress: bool, video: bool, pose, gt) -> tuple[dict, np.ndarray]:
+              progress: bool, video: bool, pose, gt, rules: str = "auto") -> tuple[dict, np.ndarray]:
     """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
     written yet) and the tracks. ``detection``: :func:`~artmotion.tracking.track`'s ``det``,
     ``detector`` and ``detect_every``."""
@@ -250,7 +257,7 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
     if gt is not None and len(gt):
-        scores = evaluate(gt, tracks)
+        scores = evaluate(gt, tracks, rules=rules)
         # ground truth whose boxes are all ignored (distractors, conf 0) is no ground truth
         metrics = {k: float(v) for k, v in scores.items()} if scores["GT_DETS"] else None
 
@@ -312,7 +319,13 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
 
 
 def is_finished(run_dir: str | os.PathLike) -> bool:
-    return (Path(run_dir) / MANIFEST).is_file()
+    """``run_dir`` holds a finished run: a manifest as :func:`run_pipeline` writes it, not merely
+    a file called run.json (the user's own, or an empty one)."""
+    try:
+        load_run(run_dir)
+    except InputError:
+        return False
+    return True
 
 
 def load_run(run_dir: str | os.PathLike) -> dict:
@@ -387,6 +400,37 @@ def _manifest_problem(run) -> str | None:
     if metrics is not None and not (isinstance(metrics, dict) and all(
             _is_number(v, -1e300, 1e300) for v in metrics.values())):
         return "'metrics' is not an object of finite numbers"
+    return _consistency_problem(run)
+
+
+def _consistency_problem(run: dict) -> str | None:
+    """What in a manifest of the right types contradicts itself, or ``None``: a track id twice, a
+    track that ends before it begins, has more boxes than frames or ends after the sequence, a
+    sentence that ends before it begins, an event or sentence naming a track that is not there,
+    text that is not Unicode (a lone surrogate, which SQLite cannot store)."""
+    length = run.get("sequence", {}).get("length")
+    ids: set[int] = set()
+    for t in run["track_summary"]:
+        i, first, last = t["id"], t["first_frame"], t["last_frame"]
+        if i in ids:
+            return f"'track_summary': track {i} twice"
+        ids.add(i)
+        if first > last or t["boxes"] > last - first + 1:
+            return f"'track_summary': track {i} has {t['boxes']} boxes in frames {first}-{last}"
+        if length is not None and last > length:
+            return f"'track_summary': track {i} ends at frame {last}, after the sequence's {length} frames"
+    for what, items in (("events", run["events"]), ("sentences", run["sentences"])):
+        for k, x in enumerate(items, start=1):
+            unknown = [i for i in x.get("tracks", []) if i not in ids]
+            if unknown:
+                return f"'{what}' item {k} names track {unknown[0]}, which is not in 'track_summary'"
+            if what == "sentences" and None not in (x.get("frame_start"), x.get("frame_end")) \
+                    and x["frame_start"] > x["frame_end"]:
+                return f"'sentences' item {k} ends (frame {x['frame_end']}) before it begins ({x['frame_start']})"
+    try:
+        json.dumps(run, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        return "text that is not Unicode (a lone surrogate)"
     return None
 
 

@@ -52,6 +52,14 @@ class Trajectory:
         return "pose" if self.quats is not None else f"point{self.points.shape[1]}d"
 
 
+def _is_number(text: str) -> bool:
+    try:
+        number(text)
+    except ValueError:
+        return False
+    return True
+
+
 def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
     path = os.fspath(path)
@@ -70,8 +78,8 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         try:
             vals = [number(t) for t in tok]
         except ValueError:
-            if not rows and header is None:
-                header = [t.lower() for t in tok]
+            if not rows and header is None and not any(_is_number(t) for t in tok):
+                header = [t.lower() for t in tok]   # names only: a row with a number in it is a bad row
                 continue
             raise InputError(f"not a number in row: {s[:60]!r}", path=path, line=no) from None
         if ncol is None:

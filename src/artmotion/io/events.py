@@ -47,6 +47,10 @@ def event_problem(ev) -> str | None:
     tracks = ev["tracks"]
     if not isinstance(tracks, list) or not tracks or not all(_is_int(t) and abs(t) <= MAX_ID for t in tracks):
         return f"'tracks' must be a non-empty list of integer ids in [-{MAX_ID}, {MAX_ID}]"
+    if len(set(tracks)) < len(tracks):
+        return f"'tracks' names a track twice: {tracks}"
+    if ev["type"] in ("merge", "split") and len(tracks) < 2:
+        return f"a {ev['type']} is of two tracks or more, got {tracks}"
     if ev.get("side") is not None and ev["side"] not in SIDES:
         return f"unknown side {ev['side']!r} (sides: {', '.join(SIDES)})"
     if "group" in ev and not (_is_int(ev["group"]) and abs(ev["group"]) <= MAX_ID):

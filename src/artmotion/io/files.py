@@ -38,6 +38,18 @@ def read_head(path: str | os.PathLike, n: int, missing: str = "no such file") ->
         raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
 
 
+def check_riff_size(path: str | os.PathLike, head: bytes) -> None:
+    """An :class:`InputError` when ``path``, a RIFF file (AVI, WAV) whose first bytes are ``head``,
+    is shorter than its header declares: it lost its end, which OpenCV and libsndfile read past
+    without a word (the frames or samples that are left)."""
+    if head[:4] != b"RIFF" or len(head) < 8:
+        return
+    declared = int.from_bytes(head[4:8], "little") + 8
+    size = Path(path).stat().st_size
+    if size < declared:
+        raise InputError(f"truncated: {size} of the {declared} bytes its header declares", path=path)
+
+
 def read_text(path: str | os.PathLike, what: str) -> str:
     """The UTF-8 text (a byte-order mark dropped) of the regular file ``path``; ``what`` names the
     kind of file in the message when it is not text ("a MOTChallenge file")."""

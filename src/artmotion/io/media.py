@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.files import read_head
+from artmotion.io.files import check_riff_size, read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
            "image_problem", "read_image", "write_image"]
@@ -292,13 +292,7 @@ def check_video(path: str | os.PathLike) -> Path:
         raise InputError("is an image, not a video", path=path)
     if head[:4] == b"RIFF" and head[8:12] not in (b"AVI ", b"AVIX"):
         raise InputError("not a video (a RIFF file that is not AVI)", path=path)
-    if head[:4] == b"RIFF":
-        # an AVI declares its first RIFF chunk's size: a file cut short of it lost its end (the
-        # frames there, the index); OpenCV plays what is left and says nothing
-        declared = int.from_bytes(head[4:8], "little") + 8
-        size = path.stat().st_size
-        if size < declared:
-            raise InputError(f"truncated: {size} of the {declared} bytes its header declares", path=path)
+    check_riff_size(path, head)     # an AVI cut short: its frames there, its index
     mpeg_ts = head[:1] == b"\x47" and path.suffix.lower() in (".ts", ".mts", ".m2ts")
     if not mpeg_ts and not any(head[o:o + len(m)] == m for o, m in _VIDEO_MAGIC):
         kind = f" (extension {path.suffix})" if path.suffix else ""

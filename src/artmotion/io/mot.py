@@ -75,6 +75,31 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
     return np.asarray(rows, dtype=float).reshape(-1, 10)
 
 
+def check_ids(arr: np.ndarray, what: str, path: str | os.PathLike | None) -> None:
+    """Integer ids, each at most once per frame, in MOT rows ``arr``; else an :class:`InputError`
+    naming ``what`` and its ``path``."""
+    ids = arr[:, 1]
+    if (ids != np.round(ids)).any():
+        raise InputError(f"{what}: track ids must be integers", path=path)
+    if len(arr) < 2:
+        return
+    pairs = arr[:, :2]
+    uniq, counts = np.unique(pairs, axis=0, return_counts=True)
+    if (counts > 1).any():
+        f, i = uniq[np.argmax(counts > 1)]
+        raise InputError(f"{what}: id {int(i)} appears more than once in frame {int(f)}", path=path)
+
+
+def mot_columns(path: str | os.PathLike) -> int:
+    """The most values a row of the MOTChallenge file ``path`` holds (0 when it has none): 9 for
+    MOT16/17 ground truth (``frame,id,x,y,w,h,consider,class,visibility``), which :func:`read_mot`
+    pads to 10 like every other file."""
+    widths = (len(" ".join(line.strip().removesuffix(",").split(",")).split())
+              for line in read_text(Path(path), "a MOTChallenge file").splitlines()
+              if line.strip() and not line.strip().startswith("#"))
+    return max(widths, default=0)
+
+
 def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
     """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id."""
     rows = np.asarray(rows, dtype=float).reshape(-1, np.shape(rows)[-1] if np.size(rows) else 10)

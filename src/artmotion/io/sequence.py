@@ -96,10 +96,12 @@ class Sequence:
 
     def _read(self, reduce: int = 1) -> Generator[tuple[int, np.ndarray], None, None]:
         want = (-(-self.height // reduce), -(-self.width // reduce))
+        # a reduced decode rounds the size up (JPEG) or down: either is the sequence's size
+        fits = ({self.height // reduce, want[0]}, {self.width // reduce, want[1]})
         if self.images is not None:
             for i, p in enumerate(self.images, start=1):
                 img = read_image(p, _REDUCED[reduce])
-                if abs(img.shape[0] - want[0]) > 1 or abs(img.shape[1] - want[1]) > 1:
+                if img.shape[0] not in fits[0] or img.shape[1] not in fits[1]:
                     raise InputError(
                         f"image size {img.shape[1] * reduce}x{img.shape[0] * reduce} differs from the sequence's "
                         f"{self.width}x{self.height}", path=p)
@@ -228,6 +230,10 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
             if n != start + k:
                 raise InputError(f"frames out of order: expected frame {start + k}, found {p.name}", path=p)
         return [p for _, p in numbered]
+    bare = [p for n, p in numbered if n is None]
+    if len(bare) < len(files):   # a stray image among numbered frames would hide a missing one
+        raise InputError(f"{len(files) - len(bare)} images are numbered frames and {len(bare)} are not (e.g. "
+                         f"{min(p.name for p in bare)}): a folder of frames has only frames", path=folder)
     return sorted(files, key=lambda p: p.name)
 
 

@@ -46,7 +46,7 @@ def describe_cmd(
     """Describe tracks in sentences: who enters, exits, moves where, merges, splits, walks together."""
     from artmotion.io import read_events, read_mot
     from artmotion.io.media import MAX_FPS, MIN_FPS
-    from artmotion.io.mot import MAX_ID
+    from artmotion.io.mot import MAX_ID, check_ids
     from artmotion.io.table import MAX_ANGLE
     from artmotion.language.describe import describe, parse_classes, read_pose
 
@@ -58,6 +58,7 @@ def describe_cmd(
     if pose_track is not None:
         check_range("--pose-track", pose_track, -MAX_ID, MAX_ID, integer=True)
     rows = read_mot(results)
+    check_ids(rows, "results", results)   # one box per track and frame (a second would be dropped unsaid)
     evs = read_events(events) if events is not None else None
     pose_seq = None
     if pose is not None:
@@ -76,6 +77,10 @@ def describe_cmd(
                                  path=events)
         if pose_track is not None and pose_track not in ids:
             raise InputError(f"--pose-track {pose_track}: no such track in the results", path=results)
+        first = int(rows[:, 0].min())
+        if pose_seq is not None and (pose_seq[0].min() < first or pose_seq[0].max() > last):
+            raise InputError(f"pose frames {pose_seq[0].min()}-{pose_seq[0].max()} are not within the results' "
+                             f"frames {first}-{last}", path=pose)
     triplets = describe(
         rows, evs, pose=pose_seq, classes=parse_classes(cls), pose_subject=pose_subject,
         pose_track=pose_track, open_above=open_above, close_below=close_below,

@@ -20,7 +20,7 @@ def eval_command(
     import json
 
     from artmotion.errors import InputError
-    from artmotion.tracking.metrics import evaluate, format_table, gt_rules
+    from artmotion.tracking.metrics import columns_of, evaluate, format_table, gt_rules
 
     scores = evaluate(gt, results, iou_threshold=iou, rules=rules)
     if not scores["GT_DETS"]:
@@ -29,7 +29,7 @@ def eval_command(
     if rules == "auto":
         from artmotion.io import read_mot
 
-        rules = gt_rules(read_mot(gt))
+        rules = gt_rules(read_mot(gt), columns_of(gt))
     scores["rules"] = rules
     if json_out:
         typer.echo(json.dumps(scores, indent=2))

@@ -6,8 +6,8 @@ Our own implementation of the definitions, following the conventions of TrackEva
 * boxes are ``x, y, w, h`` (columns 2..5); the similarity is their IoU;
 * ground-truth rows whose confidence column (6) truncates to 0 are ignored;
 * MOT15 rules (10-column ground truth, no classes): result rows are all kept;
-* MOT16/17 rules (9-column ground truth ``frame,id,x,y,w,h,consider,class,visibility``, detected
-  from the class column, or asked for with ``rules="mot17"``): only class 1 (pedestrian) with
+* MOT16/17 rules (9-column ground truth ``frame,id,x,y,w,h,consider,class,visibility``: a file's
+  column count decides, an array's class column, or ``rules="mot17"``): only class 1 (pedestrian) with
   consider = 1 is ground truth, and a result box matched (Hungarian on IoU >= 0.5, per frame) to a
   ground-truth box of a distractor class (2 person on vehicle, 7 static person, 8 distractor,
   12 reflection) is removed before scoring -- TrackEval's ``BENCHMARK=MOT17`` preprocessing;
@@ -32,9 +32,10 @@ from scipy.optimize import linear_sum_assignment
 from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
+from artmotion.io.mot import check_ids, mot_columns
 
-__all__ = ["apply_rules", "check_ids", "evaluate", "evaluate_sequences", "format_table", "gt_rules", "HOTA_ALPHAS",
-           "METRIC_ORDER"]
+__all__ = ["apply_rules", "check_ids", "check_rules", "columns_of", "evaluate", "evaluate_sequences", "format_table",
+           "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
 
 EPS = np.finfo(float).eps
 #: The HOTA localisation thresholds (the same floats TrackEval uses).
@@ -52,13 +53,27 @@ MOT17_DISTRACTORS = (2, 7, 8, 12)
 RULES = ("auto", "mot15", "mot17")
 
 
-def gt_rules(gt: np.ndarray) -> str:
-    """``"mot17"`` if the ground truth has MOT16/17's class column (column 8 holds classes 1..13 on
-    every row, where MOT15 files hold -1 or world coordinates), else ``"mot15"``."""
+def gt_rules(gt: np.ndarray, columns: int | None = None) -> str:
+    """``"mot17"`` if the ground truth is MOT16/17's, else ``"mot15"``. ``columns``: the columns as
+    written (a file's, before :func:`read_mot` pads them): 9 is MOT16/17's, anything else MOT15's,
+    so that a class MOT17 does not know is an error, not a silent switch of rules. Without it (a
+    padded array), MOT16/17's when column 8 holds classes 1..13 on every row, where MOT15 files
+    hold -1 or world coordinates."""
+    if columns is not None:
+        return "mot17" if columns == 9 else "mot15"
     if not len(gt):
         return "mot15"
     cls = gt[:, 7]
     return "mot17" if bool(np.all(np.isin(cls, list(MOT17_CLASSES)))) and bool(np.all(gt[:, 9] == -1)) else "mot15"
+
+
+def columns_of(gt) -> int | None:
+    """The columns of ground truth ``gt`` as written, for :func:`gt_rules`: a MOTChallenge file's,
+    an array's when it has 9 (an array of 10 may be a padded MOT16/17 file: ``None``)."""
+    if isinstance(gt, (str, os.PathLike)):
+        return mot_columns(gt)
+    shape = np.shape(gt)
+    return 9 if len(shape) == 2 and shape[1] == 9 else None
 
 
 def _remove_distractor_matches(gt: np.ndarray, res: np.ndarray) -> np.ndarray:
@@ -135,21 +150,6 @@ def _load(x, what: str) -> tuple[np.ndarray, str | None]:
     if len(pad):
         arr = np.hstack([arr, np.tile(pad, (len(arr), 1))])
     return arr, None
-
-
-def check_ids(arr: np.ndarray, what: str, path: str | os.PathLike | None) -> None:
-    """Integer ids, each at most once per frame, in MOT rows ``arr``; else an :class:`InputError`
-    naming ``what`` and its ``path``."""
-    ids = arr[:, 1]
-    if (ids != np.round(ids)).any():
-        raise InputError(f"{what}: track ids must be integers", path=path)
-    if len(arr) < 2:
-        return
-    pairs = arr[:, :2]
-    uniq, counts = np.unique(pairs, axis=0, return_counts=True)
-    if (counts > 1).any():
-        f, i = uniq[np.argmax(counts > 1)]
-        raise InputError(f"{what}: id {int(i)} appears more than once in frame {int(f)}", path=path)
 
 
 def _prepare(gt: np.ndarray, res: np.ndarray) -> _Frames:
@@ -325,15 +325,27 @@ def _load_pair(gt, res, rules: str, k: int | None = None) -> tuple[np.ndarray, n
     res_arr, res_path = _load(res, "results" + suffix)
     check_ids(gt_arr, "ground truth", gt_path)
     check_ids(res_arr, "results", res_path)
-    if rules == "mot17" and len(gt_arr):
-        bad = ~np.isin(gt_arr[:, 7], list(MOT17_CLASSES))
-        if bad.all() and np.all(gt_arr[:, 7] == -1):
-            raise InputError("no class column: MOT16/17 ground truth has 9 columns "
-                             "(frame,id,x,y,w,h,consider,class,visibility)", path=gt_path)
-        if bad.any():   # as TrackEval: a class MOT17 does not know is an error, not a silent non-pedestrian
-            raise InputError(f"class {gt_arr[bad, 7][0]:g} (frame {int(gt_arr[bad, 0][0])}) is not a MOT16/17 class "
-                             f"({min(MOT17_CLASSES)}-{max(MOT17_CLASSES)})", path=gt_path)
+    rules = check_rules(gt_arr, rules, columns_of(gt), gt_path)
     return apply_rules(gt_arr, res_arr, rules)
+
+
+def check_rules(gt: np.ndarray, rules: str, columns: int | None = None, path: str | os.PathLike | None = None) -> str:
+    """The rules ``gt`` is scored by (``"auto"`` resolved by :func:`gt_rules` with the ``columns``
+    as written); under MOT16/17's, an :class:`InputError` naming ``path`` for a class they do not
+    know (as TrackEval: an error, not a silent non-pedestrian) or no class column."""
+    if rules not in RULES:
+        raise InputError(f"unknown rules {rules!r} (choose from {', '.join(RULES)})")
+    if rules == "auto":
+        rules = gt_rules(gt, columns)
+    if rules == "mot17" and len(gt):
+        bad = ~np.isin(gt[:, 7], list(MOT17_CLASSES))
+        if bad.all() and np.all(gt[:, 7] == -1):
+            raise InputError("no class column: MOT16/17 ground truth has 9 columns "
+                             "(frame,id,x,y,w,h,consider,class,visibility)", path=path)
+        if bad.any():
+            raise InputError(f"class {gt[bad, 7][0]:g} (frame {int(gt[bad, 0][0])}) is not a MOT16/17 class "
+                             f"({min(MOT17_CLASSES)}-{max(MOT17_CLASSES)})", path=path)
+    return rules
 
 
 def _scores(gt: np.ndarray, res: np.ndarray, thr: float, per_alpha: bool) -> dict:

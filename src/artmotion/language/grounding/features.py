@@ -29,6 +29,7 @@ import numpy as np
 import pyefd
 
 from artmotion.errors import InputError
+from artmotion.io.files import check_riff_size, read_head
 
 HARMONICS = 20
 N_MFCC = 13
@@ -184,6 +185,7 @@ def read_wav(path: str | os.PathLike) -> tuple[np.ndarray, int]:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such file", path=path)
+    check_riff_size(path, read_head(path, 12))   # a cut WAV: libsndfile reads the samples left
     try:
         y, sr = sf.read(str(path), dtype="float32", always_2d=True)
     except Exception as exc:  # libsndfile's errors have no common base worth naming

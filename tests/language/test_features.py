@@ -96,3 +96,7 @@ def test_bad_audio_is_an_input_error(tmp_path):
     cut.write_bytes(cut.read_bytes()[: cut.stat().st_size // 3])
     with pytest.raises(InputError, match=r"cut.wav: truncated: \d+ of the \d+ bytes its header declares"):
         audio_feature(cut)
+    slow = tmp_path / "slow.wav"   # 1 Hz: a second of "speech" in one sample
+    sf.write(slow, np.full(100, 0.5, np.float32), 1)
+    with pytest.raises(InputError, match="slow.wav: sample rate 1 Hz: speech needs at least 8000 Hz"):
+        audio_feature(slow)

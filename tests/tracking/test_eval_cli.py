@@ -88,6 +88,9 @@ def test_unknown_mot17_class_under_mot17_rules(run_cli, tmp_path):
     for rules in ("mot17", "auto"):
         code, out, err = run_cli("eval", gt, gt, "--rules", rules)
         assert code == 2 and out == "" and "gt.txt: class 99 (frame 1) is not a MOT16/17 class" in err
+    gt.write_text("1,1,10,10,20,40,1,1,-7\n2,1,10,10,20,40,1,1,1\n")
+    code, out, err = run_cli("eval", gt, gt)
+    assert code == 2 and "gt.txt: visibility -7 (frame 1) is not a share in [0, 1]" in err
     gt.write_text("1,1,10,10,20,40,1,7,1\n2,1,10,10,20,40,1,1,1\n")      # 7: a static person (distractor)
     code, out, err = run_cli("eval", gt, gt, "--json")
     assert code == 0 and '"rules": "mot17"' in out and '"FP": 0' in out, out

@@ -345,6 +345,10 @@ def check_rules(gt: np.ndarray, rules: str, columns: int | None = None, path: st
         if bad.any():
             raise InputError(f"class {gt[bad, 7][0]:g} (frame {int(gt[bad, 0][0])}) is not a MOT16/17 class "
                              f"({min(MOT17_CLASSES)}-{max(MOT17_CLASSES)})", path=path)
+        bad = (gt[:, 8] < 0) | (gt[:, 8] > 1)
+        if bad.any():
+            raise InputError(f"visibility {gt[bad, 8][0]:g} (frame {int(gt[bad, 0][0])}) is not a share in [0, 1]",
+                             path=path)
     return rules
 
 

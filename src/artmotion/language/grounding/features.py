@@ -178,6 +178,10 @@ def render_shape(shape: np.ndarray, rgb: np.ndarray, size: int = 128, background
 # audio
 
 
+#: the least sample rate of speech worth a feature (telephone speech: 8 kHz)
+MIN_RATE = 8000
+
+
 def read_wav(path: str | os.PathLike) -> tuple[np.ndarray, int]:
     """Mono float samples and rate; :class:`InputError` if missing, not audio, empty or silent."""
     import soundfile as sf
@@ -190,6 +194,8 @@ def read_wav(path: str | os.PathLike) -> tuple[np.ndarray, int]:
         y, sr = sf.read(str(path), dtype="float32", always_2d=True)
     except Exception as exc:  # libsndfile's errors have no common base worth naming
         raise InputError(f"not a readable audio file ({type(exc).__name__})", path=path) from None
+    if sr < MIN_RATE:
+        raise InputError(f"sample rate {sr} Hz: speech needs at least {MIN_RATE} Hz", path=path)
     y = y.mean(axis=1)
     if y.size < 0.05 * sr:
         raise InputError("audio too short", path=path)

@@ -5,8 +5,10 @@ Imports nothing heavy: the command line calls :func:`quiet_native_logs` before e
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
+from collections.abc import Iterator
 
 
 def quiet_native_logs() -> None:
@@ -22,3 +24,34 @@ def quiet_native_logs() -> None:
     cv2 = sys.modules.get("cv2")
     if cv2 is not None and hasattr(cv2, "utils"):
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
+
+@contextlib.contextmanager
+def signals_held(enabled: bool = True) -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs: one that arrives meanwhile is
+    recorded and handed to its handler as the block ends. For work that an interruption must not
+    cut in two: the import of torch (whose native start-up calls back into Python: interrupted
+    there, the process aborted with "terminate called after throwing an instance of
+    'pybind11::error_already_set'", exit 134 and a stack dump, instead of the command line's one
+    line), and the start of a batch's worker processes. Python runs signal handlers in the main
+    thread only, so elsewhere (or when not ``enabled``) the block runs as it is."""
+    import signal
+    import threading
+
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {int(sig): signal.signal(sig, lambda signum, _frame: pending.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if pending:
+            handler = previous[pending[0]]
+            if callable(handler):
+                handler(pending[0], None)
+            elif handler != signal.SIG_IGN:
+                signal.raise_signal(pending[0])       # the default action

@@ -73,6 +73,13 @@ def _app_for(args: list[str]) -> typer.Typer:
 
 
 def _terminate(signum, frame):
+    """The first SIGINT, SIGTERM or SIGHUP: :class:`Interrupted`, while whose unwinding the
+    outputs being written are removed. Any later one is ignored, or it would cut that clean-up
+    short (a second Ctrl-C left a hidden, half-written folder behind); SIGKILL still ends it."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)
     raise Interrupted(signum)
 
 

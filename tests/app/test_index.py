@@ -112,3 +112,33 @@ def test_cli_add_and_search_json(index, tmp_path, run_cli):
     assert code == 0 and hits[0]["video"] == "campus" and hits[0]["frame_start"] == 1
     code, out, _ = run_cli("search", "zebra", "--db", db)
     assert code == 1 and "no match" in out
+
+
+def test_runs_are_added_all_or_none(index, tmp_path, monkeypatch):
+    """Several runs are added in one transaction: a full disk at the second left the first added
+    while the command said only that the disk was full."""
+    import sqlite3
+
+    c = make_run(tmp_path / "more", "street", [S("Person 1 stays (frames 1-9).", "stays", None, [1], 1, 9)])
+    d = make_run(tmp_path / "more", "park", [S("Person 2 stays (frames 1-9).", "stays", None, [2], 1, 9)])
+    real, calls = EventIndex._insert, []
+
+    def full_at_the_second(self, *args):
+        calls.append(args)
+        if len(calls) == 2:
+            raise sqlite3.OperationalError("database or disk is full")
+        return real(self, *args)
+
+    monkeypatch.setattr(EventIndex, "_insert", full_at_the_second)
+    with pytest.raises(InputError, match="cannot write the index: database or disk is full"):
+        index.add_runs([(c, json.loads((c / "run.json").read_text())), (d, json.loads((d / "run.json").read_text()))])
+    assert sorted(v["name"] for v in index.videos()) == ["campus", "square"]
+
+
+def test_search_limit_must_be_a_whole_number_of_at_least_one(index):
+    assert len(index.search("person exits left", limit=1)) == 1
+    for bad in (-1, 0, 2.5, float("nan")):
+        with pytest.raises(InputError, match="limit"):
+            index.search("person exits left", limit=bad)
+    with pytest.raises(InputError, match="text"):
+        index.search(None)

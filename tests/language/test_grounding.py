@@ -188,3 +188,21 @@ def test_dataset_without_espeak(tmp_path, run_cli, monkeypatch):
     code, _, err = run_cli("grounding", "dataset", tmp_path / "d")
     _one_line_error(code, err, "espeak-ng is not installed")
     assert not (tmp_path / "d" / "index.csv").exists()
+
+
+@needs_espeak
+def test_speech_on_a_full_disk_is_an_error(tmp_path, monkeypatch):
+    """espeak-ng exits 0 on a full disk with the WAV cut where the room ended (and a header that
+    matches): a folder left with no free block is a full disk, not speech."""
+    import os
+    from types import SimpleNamespace
+
+    from artmotion.errors import InputError
+    from artmotion.language.grounding.dataset import speak
+
+    real = os.statvfs
+    monkeypatch.setattr(os, "statvfs", lambda p: SimpleNamespace(**{k: getattr(real(p), k) for k in dir(real(p))
+                                                                     if k.startswith("f_")} | {"f_bavail": 0}))
+    with pytest.raises(InputError, match="s.wav: cannot write: No space left on device"):
+        speak("red square", tmp_path / "s.wav", 150)
+    assert list(tmp_path.iterdir()) == []

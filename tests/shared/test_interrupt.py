@@ -48,7 +48,9 @@ def test_interrupted_track_leaves_nothing_half_written(tmp_path, long_video, sig
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=dict(os.environ, PYTHONPATH=str(SRC)))
     deadline = time.monotonic() + 120
-    while not list(out.glob(".ann.mp4.*")) and proc.poll() is None and time.monotonic() < deadline:
+    # the outputs' temporary names exist from the start; the video's own (a temporary name of its
+    # temporary name) once it is being written
+    while not list(out.glob("..ann.mp4.*")) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)                      # wait until the annotated video is being written
     assert proc.poll() is None, "finished before it could be interrupted"
     proc.send_signal(sig)
@@ -57,3 +59,49 @@ def test_interrupted_track_leaves_nothing_half_written(tmp_path, long_video, sig
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"artmotion: {word}") and "half-written" in lines[0], err
     assert sorted(p.name for p in out.iterdir()) == [], "a temporary or partial output was left"
+
+
+_TORCH_IMPORT = """
+import os, signal, sys
+def prof(frame, event, arg):
+    if event == "c_call" and getattr(arg, "__name__", "") == "_autograd_init":
+        sys.setprofile(None)
+        os.kill(os.getpid(), signal.SIGINT)      # while torch's native start-up runs
+sys.setprofile(prof)
+try:
+    import artmotion._torch
+except KeyboardInterrupt:
+    print("torch" in sys.modules and hasattr(sys.modules["torch"], "nn"))
+"""
+
+
+def test_ctrl_c_during_the_import_of_torch_waits_for_it():
+    """A Ctrl-C while torch's native start-up runs aborted the process (a C++ "terminate called",
+    exit 134, a stack dump) when it landed in a call back into Python: it is held until torch is
+    imported, then interrupts as anywhere else."""
+    pytest.importorskip("torch")
+    proc = subprocess.run([sys.executable, "-c", _TORCH_IMPORT], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, PYTHONPATH=str(SRC)))
+    assert proc.returncode == 0 and proc.stdout.strip() == "True", (proc.stdout, proc.stderr)
+
+
+def test_a_second_signal_does_not_cut_the_clean_up_short():
+    """The first signal interrupts the command; those after it, while the outputs being written are
+    removed, are ignored (a second Ctrl-C 20 ms after the first left a hidden partial folder)."""
+    from artmotion import cli
+    from artmotion.errors import Interrupted
+
+    sigs = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    before = {s: signal.getsignal(s) for s in sigs}
+    try:
+        for s in sigs:
+            signal.signal(s, cli._terminate)
+        with pytest.raises(Interrupted):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1)
+        os.kill(os.getpid(), signal.SIGINT)          # during the clean-up: nothing happens
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)

@@ -75,6 +75,66 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
 
 
+class _Interrupt(BaseException):
+    """What the command line's signal handler raises (``Interrupted``), as a test double."""
+
+
+def test_interrupt_as_the_temporary_name_is_created_leaves_nothing(tmp_path, monkeypatch):
+    """A signal handled just after the temporary file or folder was created, before the writer
+    holds its name (CI caught a video's temporary file left this way), leaves nothing behind."""
+    from artmotion.io.atomic import atomic_dir, atomic_path
+
+    real_open, real_mkdir = os.open, os.mkdir
+
+    def open_then_interrupt(name, *args, **kw):
+        fd = real_open(name, *args, **kw)
+        if ".tmp" in os.fspath(name):
+            os.close(fd)
+            raise _Interrupt
+        return fd
+
+    def mkdir_then_interrupt(name, *args, **kw):
+        real_mkdir(name, *args, **kw)
+        if ".tmp" in os.fspath(name):
+            raise _Interrupt
+
+    monkeypatch.setattr(os, "open", open_then_interrupt)
+    with pytest.raises(_Interrupt):
+        with atomic_path(tmp_path / "ann.mp4"):
+            pass
+    monkeypatch.setattr(os, "open", real_open)
+    monkeypatch.setattr(os, "mkdir", mkdir_then_interrupt)
+    with pytest.raises(_Interrupt):
+        with atomic_dir(tmp_path / "report"):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_swap_puts_the_earlier_outputs_back(tmp_path, monkeypatch):
+    """A folder of the command's own earlier outputs is swapped for the new ones by two renames; an
+    interruption between them puts the earlier outputs back instead of losing both."""
+    from artmotion.io import atomic
+    from artmotion.io.atomic import atomic_dir
+
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "a.txt").write_text("earlier")
+    real_replace, calls = os.replace, []
+
+    def replace_once(src, dst):
+        calls.append(src)
+        real_replace(src, dst)
+        if len(calls) == 1:         # the earlier outputs moved aside; the new ones not yet in
+            raise _Interrupt
+
+    monkeypatch.setattr(atomic.os, "replace", replace_once)
+    with pytest.raises(_Interrupt):
+        with atomic_dir(out, replace=lambda p: True) as tmp:
+            (tmp / "a.txt").write_text("new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert (out / "a.txt").read_text() == "earlier"
+
+
 def test_events_roundtrip_and_validation(tmp_path):
     evs = [{"type": "enter", "frame": 3, "tracks": [1], "side": "left"},
            {"type": "merge", "frame": 9, "tracks": [1, 2], "group": 100}]
@@ -189,3 +249,72 @@ def test_an_output_inside_an_input_folder_is_refused(tmp_path):
     check_writable(tmp_path / "frames.csv", tmp_path / "framesx" / "a.png", inputs=(frames,))
     check_apart(tmp_path / "out", (frames, tmp_path / "frames.csv"))  # a file input is no folder
     assert (frames / "000001.png").read_bytes() == b"png"
+
+
+def test_more_boxes_in_one_frame_than_artmotion_reads(tmp_path):
+    """A frame of tens of thousands of boxes (a detector's output before non-maximum suppression)
+    is refused when read: tracking it took hours and scoring it ran out of memory."""
+    from artmotion.io.mot import MAX_BOXES_PER_FRAME
+    from artmotion.tracking.metrics import evaluate
+
+    rows = "".join(f"1,-1,{k % 500},{k // 500},20,40,0.9\n" for k in range(MAX_BOXES_PER_FRAME + 1))
+    path = write(tmp_path, rows + "2,-1,0,0,20,40,0.9\n", "det.txt")
+    with pytest.raises(InputError, match=f"det.txt:{MAX_BOXES_PER_FRAME + 1}: more than {MAX_BOXES_PER_FRAME} "
+                                         "boxes in frame 1"):
+        read_mot(path)
+    assert len(read_mot(write(tmp_path, rows.split("\n", 1)[1], "ok.txt"))) == MAX_BOXES_PER_FRAME
+    arr = np.zeros((MAX_BOXES_PER_FRAME + 1, 7))
+    arr[:, 0], arr[:, 4:7] = 3, 1
+    with pytest.raises(InputError, match=f"{MAX_BOXES_PER_FRAME + 1} boxes in frame 3"):
+        evaluate(arr, arr[:5])
+    from artmotion.tracking.instruments.annotations import read_tools_csv
+    from artmotion.tracking.instruments.evaluate import evaluate_tools
+
+    with pytest.raises(InputError, match=f"{MAX_BOXES_PER_FRAME + 1} rows"):
+        evaluate_tools({1: np.ones((MAX_BOXES_PER_FRAME + 1, 4))}, {1: np.ones((1, 6))})
+    csv = "frame,tool,y,x,scale,angle\n" + "".join(f"0,{k},5,5,9,0\n" for k in range(MAX_BOXES_PER_FRAME + 1))
+    with pytest.raises(InputError, match=f"more than {MAX_BOXES_PER_FRAME} rows in frame 0"):
+        read_tools_csv(write(tmp_path, csv, "tools.csv"))
+
+
+def test_output_folders_through_links_and_checked_before_the_work(tmp_path):
+    """An output folder named by a link to a folder is written where the link points (the rename
+    onto the link failed after the whole run: "Not a directory"); a link to nothing, a folder of the
+    user's that holds an output's name, and a folder of files are refused before any work."""
+    from artmotion.io.atomic import atomic_dir, check_out_dir
+
+    target = tmp_path / "target"
+    target.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    check_out_dir(link, outputs=("a.txt",))
+    with atomic_dir(link, outputs=("a.txt",)) as tmp:
+        (tmp / "a.txt").write_text("new")
+    assert (target / "a.txt").read_text() == "new" and link.is_symlink()
+    dangling = tmp_path / "dangling"
+    dangling.symlink_to(tmp_path / "nowhere")
+    with pytest.raises(InputError, match="is a link to no folder"):
+        check_out_dir(dangling)
+    with pytest.raises(InputError, match="a.txt: exists and was not written by this command"):
+        check_out_dir(target, outputs=("b.txt", "a.txt"))
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InputError, match="exists and is not a folder"):
+        check_out_dir(tmp_path / "file")
+    with pytest.raises(InputError, match="a file is where a folder would be"):
+        check_out_dir(tmp_path / "file" / "sub" / "out")
+
+
+def test_commands_refuse_an_output_folder_before_the_work(tmp_path, run_cli):
+    """A folder of the user's that holds a file of an output's name was refused only after the
+    evaluation (minutes of work): the names are known from the options and checked first (here the
+    inputs do not even exist: the output folder is what is named)."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "cv_hog.csv").write_text("the user's own\n")
+    (mine / "retrieval.png").write_bytes(b"the user's own")
+    for args, name in ((("pose", "eval", tmp_path / "none", tmp_path / "none.csv", "--feature", "hog", "--out", mine),
+                        "cv_hog.csv"),
+                       (("grounding", "eval", tmp_path / "none", "--out", mine), "retrieval.png")):
+        code, _, err = run_cli(*args)
+        assert code == 2 and f"{mine / name}: exists and was not written by this command" in err, err
+    assert sorted(p.name for p in mine.iterdir()) == ["cv_hog.csv", "retrieval.png"]

@@ -730,15 +730,20 @@ def test_7_native_library_messages_stay_off_stderr(tmp_path):
 # -- 8. interruption -------------------------------------------------------------------------------
 
 
+def _start_batch(archive: Path, out: Path, workers: int, start_new_session: bool = False) -> subprocess.Popen:
+    """``artmotion batch ARCHIVE --out OUT --workers N`` started in a process of its own."""
+    return subprocess.Popen([sys.executable, "-m", "artmotion", "batch", str(archive), "--out", str(out),
+                             "--workers", str(workers)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(SRC)), start_new_session=start_new_session)
+
+
 @pytest.mark.slow
 def test_8_ctrl_c_in_batch_is_one_line_with_the_counts(tmp_path):
     archive = tmp_path / "archive"
     for i in range(8):
         inp.sequence(archive / f"s{i}", n=150)
     out = tmp_path / "runs"
-    proc = subprocess.Popen([sys.executable, "-m", "artmotion", "batch", str(archive), "--out", str(out),
-                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(SRC)), start_new_session=True)
+    proc = _start_batch(archive, out, 2, start_new_session=True)
     deadline = time.monotonic() + 120
     while not list(out.glob("*/run.json")) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)                     # one item finished
@@ -773,9 +778,7 @@ def test_8_sigterm_while_batch_workers_start_is_one_line(tmp_path):
     archive = tmp_path / "archive"
     for i in range(3):
         inp.sequence(archive / f"s{i}")
-    proc = subprocess.Popen([sys.executable, "-m", "artmotion", "batch", str(archive), "--out", str(tmp_path / "runs"),
-                             "--workers", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(SRC)))
+    proc = _start_batch(archive, tmp_path / "runs", 4)
     deadline = time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < deadline:
         if any("resource_tracker" in cmd for _, cmd in _children(proc.pid)):
@@ -785,6 +788,49 @@ def test_8_sigterm_while_batch_workers_start_is_one_line(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert err.startswith("artmotion: terminated by signal 15") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_8_an_interrupted_batch_leaves_no_partial_runs_and_counts_what_finished(tmp_path, sig):
+    """Interrupted while its workers write runs: a run folder half-written by a worker was left
+    (hidden, ``.NAME.xxxxxxxx.tmp``), and items its workers finished after the signal were said to
+    be "not finished" (the next batch then skipped them as finished)."""
+    archive = tmp_path / "archive"
+    for i in range(4):
+        inp.sequence(archive / f"s{i}", n=60)
+    runs = tmp_path / "runs"
+    proc = _start_batch(archive, runs, 2)
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and time.monotonic() < deadline and not list(runs.glob(".s*.tmp")):
+        time.sleep(0.005)                  # a worker is writing a run
+    assert proc.poll() is None, "the batch ended before it could be interrupted"
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig and err.count("\n") == 1, err
+    assert [p.name for p in runs.iterdir() if p.name.startswith(".")] == []
+    finished = sum((runs / p.name / "run.json").exists() for p in runs.iterdir())
+    assert f"{finished} of 4 items finished" in err, err
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_8_ctrl_c_while_batch_workers_start_is_one_line(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group) while a Dask worker process is starting: each
+    worker printed a KeyboardInterrupt traceback (multiprocessing's resource tracker had unblocked
+    SIGINT in the thread that spawns them)."""
+    archive = tmp_path / "archive"
+    for i in range(2):
+        inp.sequence(archive / f"s{i}")
+    proc = _start_batch(archive, tmp_path / "runs", 2, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any("multiprocessing.spawn" in cmd for _, cmd in _children(proc.pid)):
+            break
+        time.sleep(0.002)
+    time.sleep(0.2)                            # the worker is importing Dask
+    assert proc.poll() is None, "the batch ended before its workers started"
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert err.startswith("artmotion: interrupted") and err.count("\n") == 1, err
 
 # -- 9. index entries lost -------------------------------------------------------------------------
 

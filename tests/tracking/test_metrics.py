@@ -158,10 +158,10 @@ def test_paths_and_arrays_agree(tmp_path):
     [
         (np.zeros((3, 5)), "shape"),
         (np.array([[1, 1, 0, 0, 10, np.nan, 1]]), "NaN"),
-        (np.array([[0, 1, 0, 0, 10, 10, 1]]), "positive integers"),
+        (np.array([[0, 1, 0, 0, 10, 10, 1]]), r"frames must be whole numbers in \[1"),
         (np.array([[1, 1, 0, 0, 0, 10, 1]]), "box size"),
         (np.array([[1, 1, 0, 0, 10, 10, 1], [1, 1, 5, 5, 10, 10, 1]]), "more than once"),
-        (np.array([[1, 1.5, 0, 0, 10, 10, 1]]), "integers"),
+        (np.array([[1, 1.5, 0, 0, 10, 10, 1]]), "track ids must be whole numbers"),
     ],
 )
 def test_bad_arrays_raise_input_error(bad, message):

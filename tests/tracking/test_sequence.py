@@ -244,3 +244,30 @@ def test_detections_that_are_a_folder_are_an_error(mot_folder):
     (mot_folder / "det" / "det.txt").mkdir()
     with pytest.raises(InputError, match=r"det\.txt: not a file"):
         open_sequence(mot_folder)
+
+
+def test_frames_that_are_not_files_are_errors_not_skipped(tmp_path):
+    """A FIFO as seqinfo.ini was ignored (the folder then read as a folder of images); a folder, a
+    pipe or a broken link named like the last frame was skipped (a lost frame); a missing frame's
+    error named the next file as the culprit."""
+    import os
+
+    img = np.full((24, 32, 3), 90, np.uint8)
+    seq = tmp_path / "seq"
+    (seq / "img1").mkdir(parents=True)
+    for k in (1, 2, 3):
+        cv2.imwrite(str(seq / "img1" / f"{k:06d}.jpg"), img)
+    os.mkfifo(seq / "seqinfo.ini")
+    with pytest.raises(InputError, match="seqinfo.ini: not a file"):
+        open_sequence(seq)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k in (1, 2, 3):
+        cv2.imwrite(str(folder / f"{k:06d}.jpg"), img)
+    (folder / "000004.jpg").symlink_to(tmp_path / "gone.jpg")
+    with pytest.raises(InputError, match="000004.jpg: named as an image but not a file"):
+        open_sequence(folder)
+    (folder / "000004.jpg").unlink()
+    (folder / "000002.jpg").unlink()
+    with pytest.raises(InputError, match=r"frame 2 is missing \(after 000001.jpg comes 000003.jpg\)"):
+        open_sequence(folder)

@@ -142,3 +142,22 @@ def test_events_are_json_lines(tud_run):
     for line in (out / "ev.jsonl").read_text().splitlines():
         ev = json.loads(line)
         assert ev["type"] in {"enter", "exit", "merge", "split"}
+
+
+def test_outputs_are_written_all_or_none(run_cli, sample_seq, tmp_path, monkeypatch):
+    """A full disk while the results are written (after the annotated video was) left the new video
+    beside the older results of the same names: the outputs are renamed together, or none is."""
+    import artmotion.io
+    from artmotion.errors import InputError
+
+    older = tmp_path / "res.txt"
+    older.write_text("older results\n")
+
+    def full(path, rows):
+        raise InputError("cannot write: No space left on device", path=path)
+
+    monkeypatch.setattr(artmotion.io, "write_mot", full)
+    code, _, err = run_cli("track", sample_seq, "--out", older, "--events", tmp_path / "ev.jsonl",
+                           "--video", tmp_path / "ann.mp4")
+    assert code == 2 and err.strip() == f"artmotion: error: {older}: cannot write: No space left on device"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res.txt"] and older.read_text() == "older results\n"

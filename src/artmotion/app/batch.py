@@ -8,17 +8,17 @@ it stopped. A local cluster is started by default; give a scheduler address to u
 from __future__ import annotations
 
 import os
-import threading
 import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
+from artmotion._native import signals_held
 from artmotion.app.pipeline import is_finished
 from artmotion.errors import ArtmotionError, InputError, Interrupted
 from artmotion.io import check_apart
+from artmotion.io.atomic import check_can_create_in
 from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS
 
 
@@ -96,38 +96,33 @@ def _start_local_cluster(workers: int, processes: bool):
 
     from dask.distributed import LocalCluster
 
+    # a worker process starts with the signal mask of the thread that spawns it, a thread of Dask's
+    # that inherits this one's; but multiprocessing's resource tracker, started on first use from
+    # that thread, unblocks SIGINT there after it has started (a Ctrl-C then reached each worker
+    # while it unpickled its start-up data: a traceback each): it is started here first
     blocked = processes and hasattr(signal, "pthread_sigmask")
     if blocked:
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     # SIGTERM or SIGHUP while a worker is being spawned would stop this process between starting
     # the worker and handing it its start-up data (it prints a traceback once this one is gone):
-    # recorded here and delivered once the cluster is up
-    pending: list[int] = []
-    deferred: dict[int, Any] = {}
-    if processes and threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGTERM, signal.SIGHUP):
-            deferred[sig] = signal.signal(sig, lambda signum, _frame: pending.append(signum))
+    # held back until the cluster is up
     cluster = None
     try:
-        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
-                               dashboard_address=None, silence_logs=logging.CRITICAL,
-                               **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
-    finally:
-        for signum, previous in deferred.items():
-            signal.signal(signum, previous)
-        try:
-            if blocked:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a Ctrl-C held back lands here
-            if pending:
-                handler = deferred[pending[0]]
-                if callable(handler):
-                    handler(pending[0], None)
-                else:
-                    signal.raise_signal(pending[0])
-        except BaseException:
-            if cluster is not None:
-                _quietly_close(cluster)
-            raise
+        with signals_held(processes):
+            try:
+                cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=processes,
+                                       dashboard_address=None, silence_logs=logging.CRITICAL,
+                                       **({"preload": ["artmotion.app._dask_worker"]} if processes else {}))
+            finally:
+                if blocked:
+                    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a Ctrl-C held back lands here
+    except BaseException:
+        if cluster is not None:
+            _quietly_close(cluster)
+        raise
     return cluster
 
 
@@ -265,6 +260,7 @@ def run_batch(
     items = find_items(root)
     outs = item_dirs(items, out)
     check_apart(out, items)          # one error now, not one per item later (nor runs in an item's folder)
+    check_can_create_in(out)         # (a read-only folder: the cluster started, then every item failed)
     for item_path, item_out in zip(items, outs):
         check_apart(item_out, (item_path,))
     report = BatchReport()
@@ -280,6 +276,7 @@ def run_batch(
             on_progress(o, len(report.outcomes), total)
     if todo:
         cluster = None
+        interrupted: Interrupted | None = None
         if scheduler:
             client = _connect(scheduler)
         else:
@@ -308,15 +305,25 @@ def run_batch(
                         on_progress(outcome, len(report.outcomes), total)
             except Interrupted as exc:
                 _silence_dask()
-                finished = {o.item for o in report.outcomes}
-                not_run = [it for it, _ in todo if it not in finished]
                 client.cancel(list(futures))
-                report.seconds = time.perf_counter() - t0
-                raise BatchInterrupted(exc.signum, report, not_run) from None
+                interrupted = exc
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
+        if interrupted is not None:
+            # the local cluster's workers are gone: an item one of them finished after the signal
+            # counts as finished; what they left half-written is stale (an existing cluster's
+            # workers may still be writing theirs)
+            reported = {o.item for o in report.outcomes}
+            for it, od in todo:
+                if it not in reported and cluster is not None and is_finished(od):
+                    report.outcomes.append(ItemOutcome(it, "done", od, message="finished as the batch stopped"))
+            if cluster is not None:
+                _remove_stale_temporaries([od for _, od in todo])
+            finished = {o.item for o in report.outcomes}
+            report.seconds = time.perf_counter() - t0
+            raise BatchInterrupted(interrupted.signum, report, [it for it, _ in todo if it not in finished])
         # every item ended: what is left of attempts killed with their worker is stale (not after
         # an interruption, when an existing cluster's workers may still be finishing theirs)
         _remove_stale_temporaries([od for _, od in todo])

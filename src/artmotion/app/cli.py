@@ -25,16 +25,15 @@ def _db_path(db: Optional[Path], must_exist: bool = False) -> Path:
     """The index file to use; checked to be an artmotion index when it exists (before any long
     work), required to exist with ``must_exist``."""
     from artmotion.app.index import check_index
+    from artmotion.io import check_writable
 
     path = Path(db) if db is not None else Path(os.environ.get("ARTMOTION_INDEX", DEFAULT_DB))
     if path.exists():
         check_index(path)
     elif must_exist:
         raise InputError("no such index (add runs with 'artmotion index add')", path=path)
-    else:
-        from artmotion.io import check_writable
-
-        check_writable(path)  # a new index: its folder must take it
+    if not must_exist:
+        check_writable(path)  # its folder must take the new index (a read-only one failed after the work)
     return path
 
 
@@ -46,8 +45,7 @@ def _add_runs(db: Path, runs: list[Path]) -> int:
 
     manifests = [(run, load_run(run)) for run in runs]
     with building(db) as idx:
-        for run, manifest in manifests:
-            idx.add_run(run, manifest)
+        idx.add_runs(manifests)
         return len(idx.videos())
 
 

@@ -195,14 +195,19 @@ class EventIndex:
         returns the video name. ``run``: its manifest, if already read (:func:`load_run`)."""
         from artmotion.app.pipeline import load_run
 
+        return self.add_runs([(run_dir, run if run is not None else load_run(run_dir))])[0]
+
+    def add_runs(self, runs: list[tuple[str | os.PathLike, dict]]) -> list[str]:
+        """Add the videos of run folders, each with its manifest (:func:`load_run`), in one
+        transaction: all are indexed or none (a full disk half-way left some added, unsaid)."""
         if not self.write:
             raise InputError("the index is open read-only", path=self.path)
-        run = run if run is not None else load_run(run_dir)
-        name = run["name"]
-        source = _source_key(run, run_dir)
-        with self._errors(), self.conn:  # one transaction: a run is indexed whole or not at all
-            self._insert(run, name, source, run_dir)
-        return name
+        names = []
+        with self._errors(), self.conn:
+            for run_dir, run in runs:
+                self._insert(run, run["name"], _source_key(run, run_dir), run_dir)
+                names.append(run["name"])
+        return names
 
     @contextlib.contextmanager
     def _errors(self):
@@ -276,8 +281,14 @@ class EventIndex:
         structured matching alone; words it does not know send it to full-text search when the
         structured match finds nothing.
         """
+        if not isinstance(text, str):
+            raise InputError(f"a query must be text, got {type(text).__name__}")
         if not text.strip():
             raise InputError("empty query")
+        if limit is not None:  # None: every hit
+            from artmotion.errors import check_range
+
+            limit = check_range("limit", limit, 1, 10**9, integer=True)
         q = parse_query(text)
         with self._errors():
             hits = self._structured(q, video) if q.structured else []

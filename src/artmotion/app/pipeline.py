@@ -27,7 +27,7 @@ import numpy as np
 from artmotion import __version__
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
-from artmotion.io.atomic import outputs_of
+from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.events import event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
@@ -205,6 +205,7 @@ def run_pipeline(
     fingerprint = source_fingerprint(seq)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     check_apart(out, (seq.folder,))
+    check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run, outputs=RUN_FILES) as dst:
         if tools is not None:

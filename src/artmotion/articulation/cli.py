@@ -98,6 +98,8 @@ def video(
     from artmotion.io import check_apart
 
     check_apart(out, (source,))
+    if out is not None:
+        _check_video_out(out)     # before the tracking (a read-only folder failed after it)
     snapshots = 4 if out is not None else 0
     if sys.stderr.isatty():
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -131,15 +133,29 @@ def video(
         typer.echo(f"wrote {out}/result.json, {out}/parts.png")
 
 
+#: the outputs of ``articulation video --out``
+_VIDEO_OUTPUTS = ("result.json", "parts.png")
+
+
+def _earlier_video_outputs():
+    from artmotion.io.atomic import outputs_of
+
+    return outputs_of("result.json", _VIDEO_OUTPUTS, ("model", "parts", "camera"))   # an earlier answer is replaced
+
+
+def _check_video_out(out: Path) -> None:
+    from artmotion.io.atomic import check_out_dir
+
+    check_out_dir(out, replace=_earlier_video_outputs(), outputs=_VIDEO_OUTPUTS)
+
+
 def _write_video_outputs(out: Path, res, d: dict) -> None:
     """result.json and parts.png (four frames: the tracks so far, by part, and each part's axis)."""
     from artmotion.articulation.video import parts_strip
-    from artmotion.io.atomic import atomic_dir, atomic_write, outputs_of
+    from artmotion.io.atomic import atomic_dir, atomic_write
     from artmotion.io.media import write_image
 
-    names = ("result.json", "parts.png")
-    earlier = outputs_of("result.json", names, ("model", "parts", "camera"))   # an earlier answer is replaced
-    with atomic_dir(out, replace=earlier, outputs=names) as tmp:
+    with atomic_dir(out, replace=_earlier_video_outputs(), outputs=_VIDEO_OUTPUTS) as tmp:
         with atomic_write(tmp / "result.json") as fh:
             json.dump(d, fh, indent=1, allow_nan=False)
         write_image(tmp / "parts.png", parts_strip(res))

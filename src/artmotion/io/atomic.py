@@ -11,9 +11,9 @@ import glob
 import json
 import os
 import re
+import secrets
 import shutil
 import stat
-import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
@@ -89,13 +89,7 @@ def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.P
             raise InputError("given for two outputs: one would replace the other", path=path)
         if any(os.path.isfile(q) and _same_file(path, q) for q in sources):
             raise InputError("is also an input: writing the output would destroy it", path=path)
-        parent = path.parent
-        while not os.path.lexists(parent) and parent != parent.parent:
-            parent = parent.parent  # (a dangling link stops the climb: it is no folder)
-        if not parent.is_dir():
-            raise InputError("cannot write: a file is where a folder would be", path=parent)
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise InputError("cannot write: permission denied", path=parent)
+        check_can_create_in(path.parent)
 
 
 def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
@@ -106,42 +100,68 @@ def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
     return InputError(exc.reason, path=str(path) + exc.path[len(str(tmp)):], line=exc.line)
 
 
+def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path]) -> Path:
+    """Create a new, empty file (or ``folder``) of a random name ``prefix + 8 characters + suffix``
+    in ``parent``, its permissions those of any new file (the umask's; ``mkstemp``'s 0600 would make
+    outputs private to their writer). The name is put in ``made`` *before* it is created, so that
+    a caller's clean-up removes it even when a signal interrupts right after the creation (the
+    caller's ``try`` must hold this call); a name that turns out to be taken is removed from
+    ``made`` before the next one is tried."""
+    for _ in range(1000):
+        name = parent / f"{prefix}{secrets.token_hex(4)}{suffix}"
+        made[:] = [name]
+        try:
+            if folder:
+                os.mkdir(name, 0o777)
+            else:
+                os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return name
+        except FileExistsError:
+            made.clear()
+    raise FileExistsError(f"no free temporary name in {parent}")
+
+
+def _discard(made: list[Path]) -> None:
+    """Remove what :func:`_fresh` created (a file, or a folder and all in it), if it is there."""
+    for name in made:
+        if name.is_dir() and not name.is_symlink():
+            shutil.rmtree(name, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                name.unlink()
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` if the block succeeds.
 
     Use for writers that want a file name (OpenCV's VideoWriter, matplotlib's savefig, SQLite).
     ``suffix`` defaults to the destination's suffix so that format detection by extension works.
+    A failure or an interruption at any point, the temporary name's creation included, leaves
+    nothing behind.
     """
     path = _prepare(path)
     suffix = path.suffix if suffix is None else suffix
+    made: list[Path] = []
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + suffix, dir=path.parent)
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror}", path=path) from exc
-    os.close(fd)
-    tmp_path = Path(tmp)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp_path, 0o666 & ~umask)  # mkstemp's 0600 would make outputs private to their writer
-    try:
+        try:
+            tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made)
+        except OSError as exc:
+            raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from None
         yield tmp_path
         os.replace(tmp_path, path)
     except InputError as exc:
-        with contextlib.suppress(OSError):
-            tmp_path.unlink()
-        renamed = _renamed(exc, tmp_path, path)
+        _discard(made)
+        renamed = _renamed(exc, made[0], path) if made else exc
         if renamed is exc:
             raise
         raise renamed from None
     except OSError as exc:
-        with contextlib.suppress(OSError):
-            tmp_path.unlink()
+        _discard(made)
         # a full disk, a lost permission: name the destination, never the temporary name
         raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from exc
     except BaseException:
-        with contextlib.suppress(OSError):
-            tmp_path.unlink()
+        _discard(made)
         raise
 
 
@@ -158,6 +178,57 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", encoding: str | None 
             raise InputError(f"cannot write: {exc.strerror}", path=path) from exc
 
 
+def _plan_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None,
+              outputs: Iterable[str]) -> tuple[Path, bool, bool]:
+    """How :func:`atomic_dir` will write the output folder ``path``: the folder (a link to a folder
+    followed: the outputs go where it points), whether earlier outputs of the command's own are
+    swapped for the new ones, and whether the folder is the user's (``foreign``: the ``outputs``
+    are moved in, none over an existing name). An :class:`InputError` when it cannot be done."""
+    path = Path(path)
+    if path.is_symlink():
+        if not path.is_dir():
+            raise InputError("is a link to no folder: give a folder or a new name", path=path)
+        path = Path(os.path.realpath(path))
+    if path.exists() and not path.is_dir():
+        raise InputError("exists and is not a folder", path=path)
+    try:
+        empty = path.is_dir() and not any(path.iterdir())
+    except OSError as exc:
+        raise InputError(f"cannot read the folder: {exc.strerror}", path=path) from None
+    swap = path.is_dir() and not empty and replace is not None and replace(path)
+    foreign = path.is_dir() and not empty and not swap
+    if foreign:
+        _check_free(path, outputs)
+    return path, bool(swap), foreign
+
+
+def check_out_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None = None,
+                  outputs: Iterable[str] = ()) -> None:
+    """Before long work: an :class:`InputError` when :func:`atomic_dir` (same arguments) could not
+    write the output folder ``path`` — a file there, a link to nothing, an output name that exists
+    in a folder of the user's files, a folder that cannot be written — without creating anything."""
+    path, _, foreign = _plan_dir(path, replace, outputs)
+    check_can_create_in(path if foreign else path.parent)
+
+
+def check_can_create_in(folder: Path) -> None:
+    """An :class:`InputError` unless a file can be created in ``folder`` or, where it does not exist
+    yet, in its nearest existing ancestor: a file there, no permission, a read-only file system
+    (which ``os.access`` does not tell root)."""
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent  # (a dangling link stops the climb: it is no folder)
+    if not folder.is_dir():
+        raise InputError("cannot write: a file is where a folder would be", path=folder)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError("cannot write: permission denied", path=folder)
+    try:
+        read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        read_only = False
+    if read_only:
+        raise InputError("cannot write: read-only file system", path=folder)
+
+
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None = None,
                outputs: Iterable[str] = ()) -> Iterator[Path]:
@@ -171,27 +242,16 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     when the block succeeds, and never over a file or folder already there (the program did not
     create it): ``outputs``, the names the block will write, are checked before it runs, and
     every name it wrote is checked again before anything is moved (:class:`InputError`)."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise InputError("exists and is not a folder", path=path)
-    try:
-        empty = path.is_dir() and not any(path.iterdir())
-    except OSError as exc:
-        raise InputError(f"cannot read the folder: {exc.strerror}", path=path) from None
-    swap = path.is_dir() and not empty and replace is not None and replace(path)
-    foreign = path.is_dir() and not empty and not swap
-    if foreign:
-        _check_free(path, outputs)
+    path, swap, foreign = _plan_dir(path, replace, outputs)
     _prepare(path)
+    made: list[Path] = []            # the temporary folder
+    kept: list[Path] = []            # where the earlier outputs wait while a swap renames
+    swapped = False                  # the earlier outputs are out of ``path``
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path if foreign else path.parent))
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror}", path=path) from None
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o777 & ~umask)     # mkdtemp's 0700 would make outputs private to their writer
-    old = None
-    try:
+        try:
+            tmp = _fresh(path if foreign else path.parent, f".{path.name}.", ".tmp", True, made)
+        except OSError as exc:
+            raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from None
         yield tmp
         if foreign:
             names = sorted(p.name for p in tmp.iterdir())
@@ -201,28 +261,29 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
             tmp.rmdir()
             return
         if swap:
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old.tmp", dir=path.parent))
+            old = _fresh(path.parent, f".{path.name}.", ".old.tmp", True, kept)
+            swapped = True               # set first: an interruption inside the rename is covered
             os.replace(path, old)
         os.replace(tmp, path)               # onto an empty folder too (POSIX rename)
+        swapped = False                     # the new outputs are in: the earlier ones go
     except InputError as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        renamed = _renamed(exc, tmp, path)
+        _discard(made)
+        renamed = _renamed(exc, made[0], path) if made else exc
         if renamed is exc:
             raise
         raise renamed from None
     except OSError as exc:
-        if old is not None and not path.exists():
-            with contextlib.suppress(OSError):
-                os.replace(old, path)                 # put the earlier outputs back
-        shutil.rmtree(tmp, ignore_errors=True)
-        where = Path(str(exc.filename).replace(str(tmp), str(path), 1)) if exc.filename else path
+        _discard(made)
+        where = Path(str(exc.filename).replace(str(made[0]), str(path), 1)) if exc.filename and made else path
         raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        _discard(made)
         raise
     finally:
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        if swapped and not os.path.lexists(path):
+            with contextlib.suppress(OSError):
+                os.replace(kept[0], path)         # put the earlier outputs back
+        _discard(kept)
 
 
 def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()) -> Callable[[Path], bool]:

@@ -85,7 +85,13 @@ def read_events(path: str | os.PathLike) -> list[dict]:
 
 
 def write_events(path: str | os.PathLike, events: Iterable[dict]) -> None:
-    """Write events as JSON lines, atomically, in the given order."""
+    """Write events as JSON lines, atomically, in the given order; each is checked as
+    :func:`read_events` checks it (never a file it would refuse)."""
+    events = list(events)
+    for k, ev in enumerate(events):
+        problem = event_problem(ev)
+        if problem is not None:
+            raise InputError(f"event {k + 1} for {os.fspath(path)}: {problem}")
     with atomic_write(path) as fh:
         for ev in events:
-            fh.write(json.dumps(ev, sort_keys=False) + "\n")
+            fh.write(json.dumps(ev, sort_keys=False, allow_nan=False) + "\n")

@@ -19,6 +19,10 @@ MAX_FRAME = 10_000_000
 MAX_ID = 2**31 - 1
 #: box coordinates and sizes in pixels lie within +-this
 MAX_COORD = 1e6
+#: the most boxes one frame may hold: a crowd of MOT20 has a few hundred; tens of thousands are a
+#: detector's raw output before non-maximum suppression, which association and scoring (a cost
+#: matrix of every pair in a frame) would take hours or all memory over
+MAX_BOXES_PER_FRAME = 2000
 
 
 def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_empty: bool = True) -> np.ndarray:
@@ -28,13 +32,15 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
     are filled with ``conf=1`` and ``X=Y=Z=-1``. Every problem is reported as an
     :class:`InputError` naming the file and line: non-numeric, NaN or infinite values, a frame
     or track id that is not a whole number in range (:data:`MAX_FRAME`, :data:`MAX_ID`),
-    non-positive width or height, coordinates beyond :data:`MAX_COORD`, frames out of order
-    (``require_sorted``), text that is not UTF-8.
+    non-positive width or height, coordinates beyond :data:`MAX_COORD`, more than
+    :data:`MAX_BOXES_PER_FRAME` boxes in one frame, frames out of order (``require_sorted``), text
+    that is not UTF-8.
     """
     path = Path(path)
     text = read_text(path, "a MOTChallenge file")
     rows: list[list[float]] = []
     last_frame = -math.inf
+    per_frame: dict[float, int] = {}
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
@@ -68,6 +74,11 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
         if require_sorted and frame < last_frame:
             raise InputError(f"frame {int(frame)} out of order (after frame {int(last_frame)})", path=path, line=lineno)
         last_frame = max(last_frame, frame)
+        per_frame[frame] = per_frame.get(frame, 0) + 1
+        if per_frame[frame] > MAX_BOXES_PER_FRAME:
+            raise InputError(f"more than {MAX_BOXES_PER_FRAME} boxes in frame {int(frame)}, more than artmotion "
+                             "reads in one frame (a detector's output before non-maximum suppression?)",
+                             path=path, line=lineno)
         defaults = [1.0, -1.0, -1.0, -1.0]
         rows.append(values + defaults[len(values) - 6 :])
     if not rows and not allow_empty:
@@ -100,9 +111,44 @@ def mot_columns(path: str | os.PathLike) -> int:
     return max(widths, default=0)
 
 
+def check_mot_rows(rows, what: str = "tracks") -> np.ndarray:
+    """``rows`` as an ``(N, >=6)`` float array that :func:`read_mot` would accept back (whole
+    frames in ``[1, MAX_FRAME]`` and ids, finite values, positive sizes, coordinates within
+    :data:`MAX_COORD`, at most :data:`MAX_BOXES_PER_FRAME` boxes a frame); else an
+    :class:`InputError` naming ``what``. For arrays given to the API, which no file reader checked."""
+    try:
+        arr = np.asarray(rows, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what}: not a numeric array ({exc})") from None
+    if arr.size == 0:
+        return arr.reshape(0, 10)
+    if arr.ndim != 2 or arr.shape[1] < 6:
+        raise InputError(f"{what}: expected MOT rows, an (N, >=6) array (frame, id, x, y, w, h, ...), "
+                         f"got shape {arr.shape}")
+    head = arr[:, :min(arr.shape[1], 7)]
+    if not np.isfinite(head).all():
+        raise InputError(f"{what}: NaN or infinite value")
+    frames, ids = arr[:, 0], arr[:, 1]
+    if ((frames < 1) | (frames > MAX_FRAME) | (frames != np.round(frames))).any():
+        raise InputError(f"{what}: frames must be whole numbers in [1, {MAX_FRAME}]")
+    if ((np.abs(ids) > MAX_ID) | (ids != np.round(ids))).any():
+        raise InputError(f"{what}: track ids must be whole numbers in [-{MAX_ID}, {MAX_ID}]")
+    if (arr[:, 4:6] <= 0).any():
+        raise InputError(f"{what}: non-positive box size")
+    if (np.abs(arr[:, 2:6]) > MAX_COORD).any():
+        raise InputError(f"{what}: coordinates and sizes must lie in [-{MAX_COORD:g}, {MAX_COORD:g}] pixels")
+    order = np.sort(frames)
+    counts = np.bincount(np.searchsorted(order, frames))
+    if counts.max() > MAX_BOXES_PER_FRAME:
+        raise InputError(f"{what}: {int(counts.max())} boxes in frame {int(order[int(np.argmax(counts))])}, more "
+                         f"than artmotion reads in one frame ({MAX_BOXES_PER_FRAME})")
+    return arr
+
+
 def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
-    """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id."""
-    rows = np.asarray(rows, dtype=float).reshape(-1, np.shape(rows)[-1] if np.size(rows) else 10)
+    """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id
+    (:func:`check_mot_rows` first: never a file :func:`read_mot` would refuse)."""
+    rows = check_mot_rows(rows, f"rows for {os.fspath(path)}")
     if rows.size:
         rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
     with atomic_write(path) as fh:

@@ -214,7 +214,10 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
     exts = {ext.lower()} if ext else IMAGE_EXTS
-    files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in exts]
+    files = [p for p in folder.iterdir() if p.suffix.lower() in exts]
+    for p in files:     # a frame that is a folder, a pipe or a broken link is not skipped: it is a lost frame
+        if not p.is_file():
+            raise InputError("named as an image but not a file (a folder, a pipe or a broken link)", path=p)
     if not files:
         raise InputError("no images in folder" if not ext else f"no '{ext}' images in folder", path=folder)
     numbered = [(_frame_number(p), p) for p in files]
@@ -228,7 +231,8 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
         start = nums[0]
         for k, (n, p) in enumerate(numbered):
             if n != start + k:
-                raise InputError(f"frames out of order: expected frame {start + k}, found {p.name}", path=p)
+                raise InputError(f"frame {start + k} is missing (after {numbered[k - 1][1].name} comes {p.name})",
+                                 path=folder)
         return [p for _, p in numbered]
     bare = [p for n, p in numbered if n is None]
     if len(bare) < len(files):   # a stray image among numbered frames would hide a missing one
@@ -243,6 +247,8 @@ def _image_size(path: Path) -> tuple[int, int]:
 
 
 def _read_seqinfo(ini: Path) -> dict:
+    if not ini.is_file():
+        raise InputError("not a file (a folder, a pipe or a broken link)", path=ini)   # would be read forever
     cp = configparser.ConfigParser()
     try:
         cp.read_string(ini.read_text(encoding="utf-8-sig"))
@@ -350,7 +356,7 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
     if not path.exists():
         raise InputError("no such file or folder", path=path)
     if path.is_dir():
-        if (path / "seqinfo.ini").is_file():
+        if os.path.lexists(path / "seqinfo.ini"):     # (a folder or a pipe of that name: an error, not ignored)
             return _open_mot_folder(path)
         try:
             return _open_image_folder(path)

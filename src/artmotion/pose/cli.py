@@ -208,9 +208,17 @@ def eval_cmd(
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     check_range("--folds", folds, 2, 1000, integer=True)
     from artmotion.io import check_apart
+    from artmotion.io.atomic import check_out_dir, outputs_of
 
     check_apart(out, (images, test_images, dark_images))
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
+    # the outputs, known from the options: checked before the work (a folder of the user's own that
+    # holds one of them was refused only once the evaluation was done)
+    sets = ["cv"] + [key for key, given in (("test", test_images), ("dark", dark_images)) if given is not None]
+    outputs = ["eval.md", "eval.json"] + [f"{s}_{f}{kind}.csv" for s in sets for f in feature for kind in ("", "_filtered")]
+    earlier = outputs_of("eval.json", r"eval\.md|\w+\.csv")    # an earlier evaluation is replaced
+    if out is not None:
+        check_out_dir(out, replace=earlier, outputs=outputs)
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     views = _views(boxes, paths)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
@@ -230,11 +238,9 @@ def eval_cmd(
     from contextlib import nullcontext
 
     from artmotion.io import atomic_dir, atomic_write
-    from artmotion.io.atomic import outputs_of
 
     # a new --out folder appears only when every table and prediction in it is written
-    earlier = outputs_of("eval.json", r"eval\.md|\w+\.csv")    # an earlier evaluation is replaced
-    with (atomic_dir(out, replace=earlier, outputs=("eval.md", "eval.json")) if out is not None
+    with (atomic_dir(out, replace=earlier, outputs=outputs) if out is not None
           else nullcontext(None)) as dst:
         results = {}
         for f in feature:

@@ -22,9 +22,8 @@ from collections.abc import Callable
 
 import cv2
 import numpy as np
-import torch
-from torch import nn
 
+from artmotion._torch import nn, torch
 from artmotion.io.sequence import prefetched
 from artmotion.pose.features import VIEW_DIM
 

@@ -60,10 +60,11 @@ def track_command(
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:
     """Track people through occlusions (Product of Tracking Experts + group nodes)."""
+    import contextlib
     import sys
 
     from artmotion.errors import InputError
-    from artmotion.io import check_writable, write_events, write_mot
+    from artmotion.io import atomic_path, check_writable, write_events, write_mot
     from artmotion.tracking import DEFAULT_EXPERTS, open_sequence, track
 
     if video and not video.lower().endswith(".mp4"):
@@ -74,12 +75,16 @@ def track_command(
     check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path))
     if progress is None:
         progress = sys.stderr.isatty()
-    res = track(seq, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress, video=video,
-                fps=fps, detector=detector, detect_every=detect_every)
-    if out:
-        write_mot(out, res.tracks)
-    if events:
-        write_events(events, res.events)
+    # the outputs are written under temporary names and renamed together once all are written: a
+    # full disk while writing one never leaves the others (a new video beside older results)
+    with contextlib.ExitStack() as stack:
+        tmp = {p: stack.enter_context(atomic_path(p)) for p in (out, events, video) if p}
+        res = track(seq, det=det, experts=experts or DEFAULT_EXPERTS, online=online, progress=progress,
+                    video=tmp.get(video), fps=fps, detector=detector, detect_every=detect_every)
+        if out:
+            write_mot(tmp[out], res.tracks)
+        if events:
+            write_events(tmp[events], res.events)
     counts: dict[str, int] = {}
     for ev in res.events:
         counts[ev["type"]] = counts.get(ev["type"], 0) + 1

@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
-from artmotion.io.mot import check_ids, mot_columns
+from artmotion.io.mot import check_ids, check_mot_rows, mot_columns
 
 __all__ = ["apply_rules", "check_ids", "check_rules", "columns_of", "evaluate", "evaluate_sequences", "format_table",
            "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
@@ -130,21 +130,9 @@ def _load(x, what: str) -> tuple[np.ndarray, str | None]:
     """A ``(N, >=7)`` float array from a path or array, validated; and the path if any."""
     if isinstance(x, (str, os.PathLike)):
         return read_mot(x), os.fspath(x)
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{what}: not a numeric array ({exc})") from None
+    arr = check_mot_rows(x, what)
     if arr.size == 0:
         return np.zeros((0, 10)), None
-    if arr.ndim != 2 or arr.shape[1] < 6:
-        raise InputError(f"{what}: expected an (N, >=6) MOT array, got shape {arr.shape}")
-    if not np.isfinite(arr[:, :7] if arr.shape[1] >= 7 else arr).all():
-        raise InputError(f"{what}: NaN or infinite value")
-    frames = arr[:, 0]
-    if (frames < 1).any() or (frames != np.round(frames)).any():
-        raise InputError(f"{what}: frame numbers must be positive integers")
-    if (arr[:, 4] <= 0).any() or (arr[:, 5] <= 0).any():
-        raise InputError(f"{what}: non-positive box size")
     # pad like read_mot: conf = 1 (every row counts), the other columns -1
     pad = np.array([1.0, -1.0, -1.0, -1.0])[max(0, arr.shape[1] - 6):]
     if len(pad):

@@ -20,6 +20,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_seed
 from artmotion.io import atomic_dir, atomic_path, atomic_write
+from artmotion.io.files import check_riff_size, read_head
 from artmotion.io.media import write_image
 from artmotion.io.table import cell_number, read_csv
 
@@ -150,7 +151,16 @@ def speak(text: str, path: str | os.PathLike, speed: int, exe: str | None = None
             )
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise InputError(f"espeak-ng failed: {exc}", path=path) from None
-        if proc.returncode != 0 or os.path.getsize(tmp) < 100:
+        # espeak-ng says nothing of a full disk: it exits 0, the WAV cut short where the room ended
+        # and its header made to match; so a disk with no room left after it is a full disk
+        if os.statvfs(tmp.parent).f_bavail == 0:
+            raise InputError("cannot write: No space left on device (the speech would be cut short)", path=path)
+        try:
+            check_riff_size(tmp, read_head(tmp, 12))
+            short = os.path.getsize(tmp) < 100
+        except InputError:
+            short = True
+        if proc.returncode != 0 or short:
             msg = (proc.stderr or "").strip().splitlines()
             raise InputError(f"espeak-ng failed: {msg[0] if msg else 'no audio written'}", path=path)
 

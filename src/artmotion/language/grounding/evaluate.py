@@ -28,7 +28,7 @@ from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, save_figure
-from artmotion.io.atomic import outputs_of
+from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.media import read_image
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
@@ -189,6 +189,11 @@ def _confusion(true, pred, names) -> list[list[int]]:
 # figures
 
 
+#: the figures :func:`save_figures` may write (some only when their data are there)
+FIGURES = ("fourier_harmonics.png", "retrieval.png", "retrieval_example.png", "unseen_renders.png",
+           "unseen_confusion.png")
+
+
 def save_figures(report: dict, F: dict, out: Path) -> list[str]:
     import matplotlib
 
@@ -283,6 +288,10 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
 def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *, seed: int = 0,
              features: dict | None = None, holdouts=HOLDOUTS, figures: bool = True) -> dict:
     """Run both evaluations; write ``report.json`` and PNGs under ``out`` (if given)."""
+    earlier = outputs_of("report.json", r"\w+\.png", ("linking", "holdouts"))   # an earlier report is replaced
+    outputs = ("report.json",) + (FIGURES if figures else ())
+    if out is not None:
+        check_out_dir(out, replace=earlier, outputs=outputs)     # before the work, not after it
     t0 = time.perf_counter()
     F = features if features is not None else load_features(dataset)
     t_feat = time.perf_counter() - t0
@@ -312,8 +321,7 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     if out is not None:
         out = Path(out)
         # a new folder appears only with every figure and the report in it
-        earlier = outputs_of("report.json", r"\w+\.png", ("linking", "holdouts"))   # an earlier report is replaced
-        with atomic_dir(out, replace=earlier, outputs=("report.json",)) as dst:
+        with atomic_dir(out, replace=earlier, outputs=outputs) as dst:
             report["_unseen"], report["_example"] = un, ret["example"]
             report["figures"] = save_figures(report, F, dst) if figures else []
             del report["_unseen"], report["_example"]

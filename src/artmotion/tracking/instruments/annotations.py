@@ -31,7 +31,7 @@ import numpy as np
 from artmotion.errors import InputError, check_range
 from artmotion.io.atomic import atomic_write
 from artmotion.io.files import number, read_text
-from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
+from artmotion.io.mot import MAX_BOXES_PER_FRAME, MAX_COORD, MAX_FRAME, MAX_ID
 
 __all__ = ["TOOLS_COLUMNS", "PREDICTION_COLUMNS", "read_tools_csv", "read_predictions", "write_predictions", "wrap_angle"]
 
@@ -108,7 +108,11 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
             raise InputError(f"duplicate {ident} {key} in frame {frame} (first on line {first_line[frame, key]})",
                              path=path, line=lineno)
         first_line[frame, key] = lineno
-        rows.setdefault(frame, {})[key] = values
+        in_frame = rows.setdefault(frame, {})
+        if len(in_frame) >= MAX_BOXES_PER_FRAME:
+            raise InputError(f"more than {MAX_BOXES_PER_FRAME} rows in frame {frame}, more than artmotion reads "
+                             "in one frame", path=path, line=lineno)
+        in_frame[key] = values
     if names is None:
         raise InputError(f"no header (expected {','.join(columns)})", path=path)
     if not rows and nothing is not None:

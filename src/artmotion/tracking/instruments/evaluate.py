@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from artmotion.errors import InputError, check_range
-from artmotion.io.mot import MAX_COORD
+from artmotion.io.mot import MAX_BOXES_PER_FRAME, MAX_COORD
 
 __all__ = ["evaluate_tools", "format_report"]
 
@@ -40,6 +40,9 @@ def _arrays(frames: dict[int, np.ndarray], width: int, what: str) -> dict[int, n
             raise InputError(f"{what} of frame {frame} must be a (k, {width}) array, got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise InputError(f"{what} of frame {frame}: NaN or infinite value")
+        if len(arr) > MAX_BOXES_PER_FRAME:
+            raise InputError(f"{what} of frame {frame}: {len(arr)} rows, more than artmotion scores in one frame "
+                             f"({MAX_BOXES_PER_FRAME})")
         out[int(frame)] = arr
     return out
 

@@ -18,8 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import torch
-from torch import nn
+
+from artmotion._torch import nn, torch
 
 #: frame pixels per output cell (the network sees the frame at half size and downsamples by 4)
 STRIDE = 8

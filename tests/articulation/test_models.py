@@ -115,3 +115,28 @@ def test_points_must_be_finite_2d_or_3d():
         as_points3(np.zeros((5, 4)))
     with pytest.raises(InputError):
         as_points3(np.array([[0.0, np.nan], [1, 1]]))
+
+
+@pytest.mark.parametrize("cls", [StaticModel, PrismaticModel, RevoluteModel, PlanarModel])
+def test_point_models_refuse_bad_points_and_predict_before_fit(cls):
+    with pytest.raises(InputError, match="not fitted"):
+        cls().predict(np.zeros((2, cls.dof)))
+    with pytest.raises(InputError, match="not fitted"):
+        cls().configuration()
+    with pytest.raises(InputError, match="NaN"):
+        cls().fit(np.full((5, 3), np.nan))
+    with pytest.raises(InputError, match="at least"):
+        cls().fit(np.zeros((cls.min_points - 1, 3)))
+    with pytest.raises(InputError, match="array"):
+        cls().fit(np.zeros(3))
+    with pytest.raises(InputError, match="weight"):
+        cls().fit(np.random.default_rng(0).normal(size=(5, 3)), weights=np.ones(4))
+    # identical or collinear points: an answer, not a LinAlgError
+    for X in (np.ones((5, 3)), np.c_[np.arange(5.0), np.zeros(5), np.zeros(5)]):
+        m = cls().fit(X)
+        assert np.all(np.isfinite(m.predict(m.motion(X))))
+
+
+def test_make_model_refuses_unknown_names():
+    with pytest.raises(InputError, match="unknown point model"):
+        make_model("foo")

@@ -147,3 +147,36 @@ def test_along_track_filter_is_the_kalman_filter():
         x, P = x + K * y, P - np.outer(K, P[0])
     assert abs(along - expect) < 1e-6 * abs(expect)
     assert np.allclose(f.x[0], x) and np.allclose(f.P[0], P, rtol=1e-6, atol=1e-14)
+
+
+def _arc(n=40):
+    a = np.linspace(0, 1.2, n)
+    return np.c_[0.5 * np.cos(a), 0.5 * np.sin(a), np.zeros(n)]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"noise": 0.0}, "noise"), ({"noise": float("nan")}, "noise"), ({"accel": float("nan")}, "accel"),
+    ({"temperature": float("inf")}, "temperature"), ({"nu": 0}, "nu"), ({"order": 0}, "order"),
+    ({"order": 100}, "order"), ({"models": ("foo",)}, "models"), ({"models": ()}, "models"),
+    ({"dim": 5}, "dim"), ({"t": np.arange(10.0)}, "one time stamp per sample"),
+    ({"t": np.r_[np.arange(39.0), np.inf]}, "finite"), ({"t": np.arange(40.0) * 1e-300}, "steps between"),
+    ({"t": np.arange(40.0) * 1e300}, "steps between"),
+])
+def test_estimate_online_refuses_misuse(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        estimate_online(_arc(), **kwargs)
+
+
+def test_estimate_online_refuses_huge_values_and_update_checks_each_sample():
+    with pytest.raises(InputError, match="magnitude"):
+        estimate_online(_arc() * 1e300)
+    X = _arc()
+    est = OnlineEstimator()
+    for z in X[:10]:
+        est.update(z)
+    with pytest.raises(InputError, match="finite"):
+        est.update([np.nan, 0, 0])
+    with pytest.raises(InputError, match="2-D or 3-D point"):
+        est.update([1.0, 0, 0, 0])
+    est.update(X[10])  # the refused samples left no trace
+    assert len(est.X) == 11 and np.all(np.isfinite(est.X))

@@ -97,3 +97,48 @@ def test_pose_track_classification():
 def test_factorize_rejects_bad_shapes():
     with pytest.raises(InputError):
         factorize(np.zeros((5, 2, 3)))
+
+
+def _turning_body(frames=20):
+    body = np.random.default_rng(0).normal(size=(6, 3))
+    return np.stack([Rot.from_rotvec([0, 0, a]).apply(body) for a in np.linspace(0, 1, frames)])
+
+
+def test_classify_poses_refuses_misuse():
+    t = np.linspace(0, 1, 20)
+    P = np.c_[np.cos(t), np.sin(t), 0 * t]
+    q = np.c_[0 * t, 0 * t, np.sin(t / 2), np.cos(t / 2)]
+    assert classify_poses(P, q).model == "revolute"
+    with pytest.raises(InputError, match="NaN"):
+        classify_poses(P * np.nan, q)
+    with pytest.raises(InputError, match="size"):
+        classify_poses(P, q, size=0)
+    with pytest.raises(InputError, match="noise"):
+        classify_poses(P, q, noise=float("nan"))
+    with pytest.raises(InputError, match="as many rows"):
+        classify_poses(P[:5], q)
+    with pytest.raises(InputError, match="at least 2 poses"):
+        classify_poses(P[:0], q[:0])
+    with pytest.raises(InputError, match=r"\(F, 4\)"):
+        classify_poses(P, q[:, :3])
+
+
+def test_classify_points_refuses_misuse_and_degenerate_bodies():
+    tracks = _turning_body()
+    assert classify_points(tracks).model == "revolute"
+    for noise in (0.0, -1.0, float("nan")):
+        with pytest.raises(InputError, match="noise"):
+            classify_points(tracks, noise=noise)
+    with pytest.raises(InputError, match="method"):
+        classify_points(tracks, method="bogus")
+    with pytest.raises(InputError, match="magnitude"):
+        classify_points(tracks * 1e300)
+    line = np.stack([np.c_[np.arange(6.0), np.zeros(6), np.zeros(6)]] * 20)
+    with pytest.raises(InputError, match="one line"):
+        classify_points(line)
+    with pytest.raises(InputError, match="one line"):
+        classify_points(np.ones((20, 5, 3)))
+    # a flat body that does not turn has a degenerate gauge: an answer, not a LinAlgError
+    flat = np.c_[tracks[0][:, :2], np.zeros(6)]
+    assert classify_points(np.stack([flat] * 10)).model == "static"
+    assert classify_points(np.stack([flat + [0.1 * k, 0, 0] for k in range(10)])).model == "prismatic"

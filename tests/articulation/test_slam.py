@@ -89,6 +89,32 @@ def test_new_landmarks_enter_at_once_unless_delayed():
         assert entered == expect
 
 
+@pytest.mark.parametrize("articulated", [False, True])
+def test_bad_controls_and_sightings_are_refused_before_the_state_is_touched(articulated):
+    """A NaN or infinite control or sighting, or ids and sightings of different lengths, used to
+    poison the whole state (a landmark at NaN, then a NaN pose) or be cut short silently."""
+    f = EKFSlam(np.zeros(3), 0.1, [0.1] * 4, 0.1, 0.01, 10, articulated=articulated)
+    f.predict([1.0, 0.1])
+    f.update([0], [[5.0, 0.1]])
+    state = (f.mu.copy(), f.P.copy(), f.n, dict(f.kinds), f.k)
+    bad_updates = [([0], [[math.nan, 0.1]]), ([1], [[math.inf, 0.1]]), ([0], [[5.0, -math.inf]]),
+                   ([0, 1], [[5.0, 0.1]]), ([0], [[5.0, 0.1], [6.0, 0.2]]), ([0], [[5.0, 0.1, 2.0]]),
+                   ([math.nan], [[5.0, 0.1]]), ([0.5], [[5.0, 0.1]])]
+    for ids, zs in bad_updates:
+        with pytest.raises(InputError, match="sighting|landmark ids"):
+            f.update(ids, zs)
+    for u in ([math.nan, 0.1], [1.0, math.inf], [1.0], [1.0, 0.1, 0.0], "vw"):
+        with pytest.raises(InputError, match="a control must be two finite numbers"):
+            f.predict(u)
+    np.testing.assert_array_equal(f.mu, state[0])
+    np.testing.assert_array_equal(f.P, state[1])
+    assert (f.n, f.kinds, f.k) == state[2:]
+    f.predict(np.array([1.0, 0.1]))  # and the filter goes on as before
+    f.update(np.array([0]), np.array([[5.0, 0.1]]))
+    f.update([], [])
+    assert np.isfinite(f.pose).all() and np.isfinite(f.P[:f.n, :f.n]).all()
+
+
 @pytest.mark.parametrize("name", list(WORLDS))
 def test_named_worlds(name):
     world = make_scenario(name, seed=5)
@@ -296,3 +322,12 @@ def test_curve_joints_in_articulated_slam():
     gated = run_slam(sim, "ekf_gated")
     err = pose_errors(out["poses"], sim["poses"])["translation_error"]
     assert err < 2 * pose_errors(gated["poses"], sim["poses"])["translation_error"]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"seed": -1}, "seed"), ({"lag": 100}, "lag"), ({"lag": -1}, "lag"), ({"runs": 2.5}, "runs"),
+    ({"runs": 0}, "runs"), ({"steps": 1}, "steps"),
+])
+def test_monte_carlo_refuses_bad_options(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        monte_carlo(**{"runs": 1, "steps": 5, **kwargs})

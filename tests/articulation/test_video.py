@@ -209,3 +209,14 @@ def test_cli_bad_options(tmp_path, run_cli):
     for args in (("--focal", "0"), ("--focal", "nan"), ("--max-parts", "0"), ("--seed", "-1")):
         code, _, err = run_cli("articulation", "video", v, *args)
         assert code == 2 and err.startswith("artmotion: error: "), (args, err)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"max_parts": 0}, "max_parts"), ({"max_parts": 21}, "max_parts"), ({"max_parts": 2.5}, "max_parts"),
+    ({"focal": -500.0}, "focal"), ({"focal": float("nan")}, "focal"), ({"seed": -1}, "seed"),
+])
+def test_analyze_video_refuses_options_the_cli_refuses(kwargs, match):
+    from artmotion.errors import InputError
+
+    with pytest.raises(InputError, match=f"^{match} must be"):  # before the video is even opened
+        analyze_video("/nonexistent/v.avi", **kwargs)

@@ -62,6 +62,30 @@ def test_walk_together_and_directions():
     assert not any("person 4" in x.lower() and "together" in x for x in s)
 
 
+def test_pairs_left_out_could_never_be_together(monkeypatch):
+    """Pairs of tracks far apart or never on one frame are not compared (a long video has many
+    tracks); what is said is the same as when every pair is compared. Random walkers, some close."""
+    from artmotion.language import describe as mod
+
+    rng = np.random.default_rng(3)
+    rows = []
+    for tid in range(1, 41):
+        first = int(rng.integers(1, 150))
+        f = np.arange(first, first + int(rng.integers(20, 120)))
+        x0, y0 = rng.uniform(0, 500, 2)
+        vx, vy = rng.normal(0, 1.5, 2)
+        rows += box_rows(tid, f, x0 + vx * (f - first), y0 + vy * (f - first) + rng.normal(0, 1, len(f)))
+    rows += box_rows(41, np.arange(1, 100), np.linspace(100, 400, 99), np.full(99, 200))
+    rows += box_rows(42, np.arange(1, 100), np.linspace(140, 440, 99), np.full(99, 205))
+    rows = np.array(rows, float)
+    fast = sentences(describe(rows, image_size=(W, H)))
+    ids = lambda tracks, near: ((a.tid, b.tid) for k, a in enumerate(tracks) for b in tracks[k + 1:])  # noqa: E731
+    monkeypatch.setattr(mod, "_near_pairs", ids)
+    every = sentences(describe(rows, image_size=(W, H)))
+    assert fast == every
+    assert any(" and " in s for s in every)           # pairs were said something of
+
+
 def test_image_size_inferred_from_extents():
     s = sentences(describe(scene()))
     assert "Person 1 exits to the right at frame 90." in s
@@ -244,3 +268,44 @@ def test_move_towards_each_other_and_apart():
     assert a0 < 20 and 50 <= a1 <= 62 and 58 <= b0 <= 70 and b1 > 100
     assert "Tool 1 and tool 2 move towards each other" in next(t.sentence for t in out if t.verb == "move towards each other")
     assert not any(set(t.tracks) & {3, 4} for t in out if t.verb in ("move towards each other", "move apart"))
+
+
+def test_describe_api_checks_what_the_command_line_checks():
+    """The API is given arrays no file reader checked: a NaN once turned "moves left" into "moves
+    upwards", a negative frame rate said negative times, and an event without a frame raised KeyError."""
+    rows = scene()
+    rows[5, 3] = np.nan
+    for bad, kw, needle in ((rows, {}, "NaN"),
+                            (scene()[:, :4], {}, "shape"),
+                            (np.vstack([scene(), scene()[:1]]), {}, "more than once"),
+                            (scene(), {"fps": -25.0}, "fps"),
+                            (scene(), {"fps": float("nan")}, "fps"),
+                            (scene(), {"image_size": (0, 480)}, "image_size"),
+                            (scene(), {"classes": "person"}, "classes")):
+        with pytest.raises(InputError, match=needle):
+            describe(bad, **kw)
+    with pytest.raises(InputError, match="event 1: an event needs keys"):
+        describe(scene(), [{"type": "enter", "tracks": [1]}])
+    huge = scene()
+    huge[:, 0] *= 1e15
+    with pytest.raises(InputError, match="frames must be whole numbers"):
+        describe(huge)
+
+
+def test_writers_never_write_what_their_readers_refuse(tmp_path):
+    from artmotion.io import read_events, read_mot
+
+    rows = scene()
+    rows[3, 3] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        write_mot(tmp_path / "r.txt", rows)
+    with pytest.raises(InputError, match="track ids must be whole"):
+        write_mot(tmp_path / "r.txt", np.array([[1, 2.5, 0, 0, 10, 10, 1]]))
+    with pytest.raises(InputError, match="event 2 for"):
+        write_events(tmp_path / "e.jsonl", [{"type": "enter", "frame": 1, "tracks": [1]}, 2])
+    with pytest.raises(InputError, match="'frame' must be"):
+        write_events(tmp_path / "e.jsonl", [{"type": "enter", "frame": float("nan"), "tracks": [1]}])
+    assert list(tmp_path.iterdir()) == []
+    write_mot(tmp_path / "r.txt", scene())
+    write_events(tmp_path / "e.jsonl", [{"type": "enter", "frame": 1, "tracks": [1]}])
+    assert len(read_mot(tmp_path / "r.txt")) == len(scene()) and len(read_events(tmp_path / "e.jsonl")) == 1

@@ -69,3 +69,32 @@ def test_deterministic_for_a_seed():
     a = PairedSparse(n_atoms=12, seed=4).fit(visual[0], audio[1]).audio_to_visual(audio[1][:5])
     b = PairedSparse(n_atoms=12, seed=4).fit(visual[0], audio[1]).audio_to_visual(audio[1][:5])
     assert np.array_equal(a, b)
+
+
+def test_models_before_fit_and_non_finite_features_are_input_errors():
+    from artmotion.errors import InputError
+
+    with pytest.raises(InputError, match="not fitted"):
+        CompositionalSparse().audio_to_visual([np.zeros((1, 13))] * 2)
+    with pytest.raises(InputError, match="not fitted"):
+        PairedSparse().audio_to_visual(np.zeros((1, 13)))
+    with pytest.raises(InputError, match="not fitted"):
+        PairedSparse().codes_from_visual(np.zeros((1, 5)))
+    rng = np.random.default_rng(0)
+    X, Y = rng.normal(size=(20, 5)), rng.normal(size=(20, 7))
+    with pytest.raises(InputError, match="pair up row by row"):
+        PairedSparse().fit(X, Y[:5])
+    for v in (np.nan, np.inf):
+        bad = Y.copy()
+        bad[0, 0] = v
+        with pytest.raises(InputError, match="audio features contain NaN or infinite"):
+            PairedSparse().fit(X, bad)
+    m = PairedSparse(n_atoms=6).fit(X, Y)
+    bad = Y[:2].copy()
+    bad[1, 3] = np.nan
+    with pytest.raises(InputError, match="audio features contain NaN or infinite"):
+        m.audio_to_visual(bad)
+    with pytest.raises(InputError, match="7 dimensions"):
+        m.audio_to_visual(Y[:2, :3])
+    with pytest.raises(InputError, match="permutation matrix"):
+        CompositionalSparse(n_atoms=4).fit([X, X], [Y, Y], H=np.ones((2, 2)))

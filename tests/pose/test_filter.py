@@ -195,3 +195,33 @@ def test_tune_filter_undoes_a_measurement_variance_too_wide_for_the_filter():
         m, s = filt.smooth(new, right)
         inside.append(np.mean(np.abs(new - m) <= 3 * s))
     assert inside[0] < 0.95 and inside[1] > 0.97, inside
+
+
+def test_filter_refuses_nan_and_bad_parameters():
+    m = np.cumsum(np.ones((10, 2)), 0)
+    sd = np.ones((10, 2))
+    bad = m.copy()
+    bad[4, 0] = np.nan
+    with pytest.raises(InputError, match="means contain NaN"):
+        PoseFilter([1.0, 1.0]).filter(bad, sd)
+    for s in (sd * np.inf, sd * np.nan, -sd):
+        with pytest.raises(InputError, match="standard deviations"):
+            PoseFilter([1.0, 1.0]).filter(m, s)
+    with pytest.raises(InputError, match="shape of the means"):
+        PoseFilter([1.0, 1.0]).filter(m, sd[:, :1])
+    with pytest.raises(InputError, match="means contain NaN"):
+        PoseFilter([1.0, 1.0]).step([np.nan, 0.0], [1.0, 1.0])
+    for kwargs in ({"accel_var": [np.nan, 1.0]}, {"accel_var": [1.0, 0.0]}, {"accel_var": [1.0, 1.0], "dt": np.nan},
+                   {"accel_var": [1.0, 1.0], "dt": 0.0}):
+        with pytest.raises(InputError, match="accel_var|dt"):
+            PoseFilter(**kwargs)
+
+
+def test_smooth_refuses_fractional_frames_and_huge_spans():
+    m, sd = np.zeros((2, 2)), np.ones((2, 2))
+    with pytest.raises(InputError, match="whole numbers"):
+        PoseFilter([1.0, 1.0]).smooth(m, sd, frames=[1, 2.5])
+    with pytest.raises(InputError, match="span at most"):
+        PoseFilter([1.0, 1.0]).smooth(m, sd, frames=[1, 10**9])
+    out, _ = PoseFilter([1.0, 1.0]).smooth(m, sd, frames=[1.0, 5.0])  # whole floats are frame numbers
+    assert out.shape == (2, 2)

@@ -70,3 +70,45 @@ def test_time_varying_R_and_loglik():
     y = np.array([0.4, -0.2])
     ref = -0.5 * (2 * math.log(2 * math.pi) + math.log(np.linalg.det(S)) + y @ np.linalg.solve(S, y))
     assert np.isclose(gaussian_loglik(y, S), ref)
+
+
+def _cv_filter():
+    F, Q, H = constant_velocity(1.0, 1.0, dims=1)
+    return KalmanFilter([0.0, 0.0], np.eye(2), F, Q, H, [[1.0]])
+
+
+def test_kalman_filter_refuses_mismatched_shapes_and_negative_variances():
+    from artmotion.errors import InputError
+
+    F, Q, H = constant_velocity(1.0, 1.0, dims=1)
+    with pytest.raises(InputError, match="z must hold 1 value"):
+        _cv_filter().update([1.0, 2.0])
+    with pytest.raises(InputError, match="z contains NaN"):
+        _cv_filter().update([np.nan])
+    with pytest.raises(InputError, match=r"P must have shape \(3, 3\)"):
+        KalmanFilter([0.0, 0.0, 0.0], np.eye(2), F, Q, H, [[1.0]])
+    with pytest.raises(InputError, match=r"P must have shape \(2, 2\)"):
+        KalmanFilter([0.0, 0.0], np.eye(3), F, Q, H, [[1.0]])
+    with pytest.raises(InputError, match="R has a negative variance"):
+        KalmanFilter([0.0, 0.0], np.eye(2), F, Q, H, [[-1.0]])
+    with pytest.raises(InputError, match="R must be a non-negative variance"):
+        _cv_filter().update([1.0], R=-1.0)
+    with pytest.raises(InputError, match=r"R must have shape \(1, 1\)"):
+        _cv_filter().update([1.0], R=np.eye(2))
+    kf = _cv_filter()
+    kf.x = np.zeros(3)  # a state replaced by hand that no longer fits P
+    with pytest.raises(InputError, match=r"P must have shape \(3, 3\)"):
+        kf.update([1.0])
+    kf = _cv_filter()
+    kf.P = np.eye(3)
+    with pytest.raises(InputError, match="P must have shape"):
+        kf.predict()
+
+
+def test_constant_velocity_refuses_a_variance_count_other_than_dims():
+    from artmotion.errors import InputError
+
+    with pytest.raises(InputError, match="one per axis"):
+        constant_velocity(1.0, [1.0, 2.0, 3.0], dims=2)
+    F, Q, H = constant_velocity(1.0, [1.0, 2.0], dims=2)
+    assert np.isclose(Q[2, 2] / Q[0, 0], 2.0)

@@ -191,3 +191,34 @@ def test_a_detector_of_your_own(tmp_path, tud_frames):
     res = track(folder, fps=25, detector=Truth(), detect_every=3)
     assert res.detector == "truth" and seen == [1, 4, 7, 10]
     assert res.num_tracks >= 4
+
+
+def test_a_detector_of_your_own_is_held_to_a_detections_file():
+    """What a user's detector returns is checked as a detections file is (NaN boxes raised a deep
+    ValueError, a score of 5 reached the results), and so are the tracker's settings (a NaN gate
+    gave no tracks without a word)."""
+    frame = np.zeros((48, 64, 3), np.uint8)
+
+    class Returns(Detector):
+        def __init__(self, out):
+            self.out = out
+
+        def detect(self, frame):
+            return self.out
+
+    box = np.array([[1.0, 2.0, 10.0, 20.0]])
+    assert Returns((box, [0.5]))(frame).shape == (1, 5)
+    assert Returns((np.zeros((0, 4)), []))(frame).shape == (0, 5)
+    for out, needle in (((box * np.nan, [0.5]), "NaN"), ((box, [0.5, 0.6]), "1 boxes but 2 scores"),
+                        (None, "must return"), ((box, [5.0]), r"scores must lie in \[0, 1\]"),
+                        ((-box, [0.5]), "positive size")):
+        with pytest.raises(InputError, match=needle):
+            Returns(out)(frame)
+    with pytest.raises(InputError, match="detector must be a name"):
+        track(SAMPLE, det=None, detector=42)
+    for bad, needle in ((dict(match_iou=float("nan")), "match_iou"), (dict(max_lost=float("inf")), "max_lost"),
+                        (dict(experts_when="bogus"), "experts_when"), (dict(confirm_hits=0), "confirm_hits")):
+        with pytest.raises(InputError, match=needle):
+            MultiObjectTracker(25.0, 640, 480, config=TrackerConfig(**bad))
+    with pytest.raises(InputError, match="config must be a TrackerConfig"):
+        MultiObjectTracker(25.0, 640, 480, config={"high": 0.5})

@@ -168,6 +168,80 @@ def test_trained_detector_finds_heads_on_frames_it_saw(lap_subset):
     assert tr._px == pytest.approx(2.0)
 
 
+def _untrained_detector(shape=(96, 128)):
+    from artmotion.tracking.instruments import net
+
+    det = ToolDetector(width=4)
+    det.model_, det.frame_shape_ = net.HeadNet(det.width).eval(), shape
+    return det
+
+
+def test_detector_refuses_what_is_not_a_bgr_uint8_frame():
+    """Grey, BGRA, bool, float, empty frames and None used to reach torch or OpenCV (deep errors, or
+    a ZeroDivisionError); frames of two sizes in one batch, NumPy's stack."""
+    det = _untrained_detector()
+    frame = np.random.default_rng(0).integers(0, 255, (96, 128, 3), dtype=np.uint8)
+    assert det.detect(frame).shape[1] == 5
+    assert [d.shape[1] for d in det.detect_batch([frame, frame])] == [5, 5]
+    for bad in (frame[:, :, 0], np.dstack([frame, frame[:, :, :1]]), frame > 100, frame.astype(np.float32), None,
+                frame.tolist()):
+        with pytest.raises(InputError, match=r"must be a BGR uint8 image \(H, W, 3\), got"):
+            det.detect(bad)
+    with pytest.raises(InputError, match="empty"):
+        det.detect(np.zeros((0, 0, 3), np.uint8))
+    with pytest.raises(InputError, match="one size, got 128x96 and 64x48"):
+        det.detect_batch([frame, frame[:48, :64]])
+
+
+@pytest.mark.parametrize("heads,settings,message", [
+    ([[np.nan, 10, 8, 0]], {}, "frame 1 hold NaN"),
+    ([[10, 10, 8, np.inf]], {}, "frame 1 hold NaN"),
+    ([[70, 10, 8, 0]], {}, r"frame 1: a head at \(70, 10\) lies outside the 64x48 frame"),
+    ([[10, -1, 8, 0]], {}, "outside"),
+    ([[10, 10, 0, 0]], {}, "size must be positive"),
+    ([[10, 10]], {}, r"must be a \(k, 4\) array"),
+    ([[10, 10, 8, 0]], {"width": 0}, "width"),
+    ([[10, 10, 8, 0]], {"lr": float("nan")}, "lr"),
+    ([[10, 10, 8, 0]], {"lr": 0.0}, "lr"),
+    ([[10, 10, 8, 0]], {"seed": -1}, "seed"),
+])
+def test_fit_refuses_bad_heads_and_settings(heads, settings, message):
+    frames = [np.full((48, 64, 3), 90, np.uint8)] * 2
+    with pytest.raises(InputError, match=message):
+        ToolDetector(epochs=1, batch=2, **settings).fit(frames, [np.array([[20.0, 20, 8, 0]]), np.array(heads, float)])
+
+
+def test_fit_refuses_frames_that_are_not_bgr_uint8():
+    good = np.full((48, 64, 3), 90, np.uint8)
+    for bad in (good[:, :, 0], good.astype(np.float32), None):
+        with pytest.raises(InputError, match="training frame 1 must be a BGR uint8 image"):
+            ToolDetector(epochs=1, batch=2).fit([good, bad], [np.zeros((0, 4))] * 2)
+
+
+def test_tracker_refuses_bad_frames_and_detections_and_goes_on():
+    class NaNDetector:
+        def detect(self, frame):
+            return np.array([[np.nan, 1, 1, 1, 1.0]])
+
+    frame = np.random.default_rng(1).integers(0, 255, (120, 160, 3), dtype=np.uint8)
+    tr = ToolTracker(NaNDetector(), klt=False)
+    with pytest.raises(InputError, match="BGR uint8"):
+        tr.update(frame[:, :, 0], np.zeros((0, 5)))
+    with pytest.raises(InputError, match="the detector's detections hold NaN"):
+        tr.update(frame)
+    det = np.array([[50.0, 60, 25, 1, 0.9]])
+    tr.update(frame, det)
+    for bad, message in ((np.array([[np.nan, 60, 25, 1, 0.9]]), "detections hold NaN"),
+                         (np.array([[50.0, 60, 25, 0.9]]), r"\(k, 5\) array"),
+                         (np.ones((2, 10)), r"\(k, 5\) array")):
+        with pytest.raises(InputError, match=message):
+            tr.update(frame, bad)
+    with pytest.raises(InputError, match="a frame of 80x60 after frames of 160x120"):
+        tr.update(frame[:60, :80], det)
+    rows = tr.update(frame, det)  # nothing above changed the tracker: the head is confirmed on its second frame
+    assert rows.shape == (1, 6) and rows[0, 0] == 0 and abs(rows[0, 1] - 50) < 1
+
+
 def test_scale_to():
     assert scale_to((288, 384), (288, 384)) == 1.0
     assert scale_to((288, 384), (290, 390)) == 1.0  # a few pixels are no other scale
@@ -229,3 +303,21 @@ def test_loading_a_model_with_absurd_settings(tmp_path, field, value):
     torch.save(state, bad)
     with pytest.raises(InputError, match="damaged tool model"):
         ToolDetector.load(bad)
+
+
+def test_saving_a_model_on_a_full_disk_is_an_input_error(tmp_path):
+    """torch.save given a file name reports a full disk as a RuntimeError of its own ("enforce
+    fail at inline_container.cc"), which the command line took for a bug (exit 1): the model is
+    written by Python's file I/O, whose OSError is a clear "cannot write". A file-size limit stands
+    in for the full disk."""
+    import resource
+
+    det = _untrained_detector()
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4096, hard))
+    try:
+        with pytest.raises(InputError, match="m.pt: cannot write: File too large"):
+            det.save(tmp_path / "m.pt")
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert list(tmp_path.iterdir()) == []

@@ -37,13 +37,27 @@ __all__ = [
 ]
 
 
+#: largest coordinate magnitude the fits take (their squares and sums must stay finite floats)
+MAX_COORD = 1e100
+
+
+def _float_array(X, what: str) -> np.ndarray:
+    """``X`` as a float array, or an :class:`InputError` saying that ``what`` must be numbers."""
+    try:
+        return np.asarray(X, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be an array of numbers") from None
+
+
 def as_points3(X) -> tuple[np.ndarray, int]:
     """``(n, 3)`` float array and the original dimension (2 or 3)."""
-    X = np.asarray(X, dtype=float)
+    X = _float_array(X, "points")
     if X.ndim != 2 or X.shape[1] not in (2, 3):
         raise InputError(f"points must be an (n, 2) or (n, 3) array, got shape {X.shape}")
     if not np.all(np.isfinite(X)):
         raise InputError("points contain NaN or infinite values")
+    if X.size and float(np.abs(X).max()) > MAX_COORD:
+        raise InputError(f"points must be coordinates of magnitude at most {MAX_COORD:g}")
     dim = X.shape[1]
     if dim == 2:
         X = np.column_stack([X, np.zeros(len(X))])
@@ -172,6 +186,42 @@ class PointModel:
 
     name = "base"
     dof = 0
+    #: fewest points a fit needs, and the point dimensions it takes
+    min_points = 1
+    dims: tuple[int, ...] = (3,)
+
+    def _fit_input(self, X, weights) -> tuple[np.ndarray, np.ndarray | None]:
+        """``X`` and ``weights`` as float arrays, checked: finite points of a dimension the model
+        takes, at least :attr:`min_points` of them, and one finite, non-negative weight per point
+        with a positive sum; else an :class:`InputError`."""
+        X = _float_array(X, "points")
+        if X.ndim != 2 or X.shape[1] not in self.dims:
+            want = " or ".join(f"(n, {d})" for d in self.dims)
+            raise InputError(f"{self.name} model: points must be an {want} array, got shape {X.shape}")
+        if len(X) < self.min_points:
+            raise InputError(f"{self.name} model: needs at least {self.min_points} "
+                             f"point{'s' if self.min_points > 1 else ''}, got {len(X)}")
+        if not np.all(np.isfinite(X)):
+            raise InputError(f"{self.name} model: points contain NaN or infinite values")
+        if float(np.abs(X).max()) > MAX_COORD:
+            raise InputError(f"{self.name} model: points must be coordinates of magnitude at most {MAX_COORD:g}")
+        if weights is not None:
+            weights = _float_array(weights, "weights")
+            if weights.shape != (len(X),):
+                raise InputError(f"{self.name} model: needs one weight per point ({len(X)}), got shape {weights.shape}")
+            if not (np.all(np.isfinite(weights)) and np.all(weights >= 0.0) and weights.sum() > 0.0):
+                raise InputError(f"{self.name} model: weights must be finite, non-negative and not all zero")
+        return X, weights
+
+    def _not_fitted(self) -> InputError:
+        return InputError(f"{self.name} model is not fitted: call fit(points) first (or give its configuration)")
+
+    def _motion_input(self, q) -> np.ndarray:
+        """Motion variables as an ``(n, dof)`` float array (finite), else an :class:`InputError`."""
+        q = _float_array(q, "motion variables")
+        if q.size % self.dof or not np.all(np.isfinite(q)):
+            raise InputError(f"{self.name} model: motion variables must be finite numbers, {self.dof} per point")
+        return q.reshape(-1, self.dof)
 
     #: configuration parameters of the model for 3-D and for 2-D points (its charge in the BIC score)
     n_params = {3: 0, 2: 0}
@@ -216,26 +266,31 @@ class StaticModel(PointModel):
     name = "static"
     dof = 0
     n_params = {3: 3, 2: 2}  # the centre
+    min_points = 1
+    dims = (2, 3)
 
     def __init__(self, centre=None):
         self.centre = None if centre is None else np.asarray(centre, dtype=float)
 
     def fit(self, X, weights=None):
-        self.centre = _weighted_mean(np.asarray(X, dtype=float), weights)
+        X, weights = self._fit_input(X, weights)
+        self.centre = _weighted_mean(X, weights)
         return self
 
     def motion(self, X):
         return np.zeros((len(X), 0))
 
     def predict(self, q):
-        assert self.centre is not None  # fitted
+        if self.centre is None:
+            raise self._not_fitted()
         return np.repeat(self.centre[None, :], len(q), axis=0)
 
     def jacobian(self, q):
         return np.zeros((3, 0))
 
     def configuration(self, dim=3):
-        assert self.centre is not None  # fitted
+        if self.centre is None:
+            raise self._not_fitted()
         return {"centre": self.centre[:dim].tolist()}
 
 
@@ -243,13 +298,15 @@ class PrismaticModel(PointModel):
     name = "prismatic"
     dof = 1
     n_params = {3: 4, 2: 2}  # a line
+    min_points = 2
+    dims = (2, 3)
 
     def __init__(self, origin=None, direction=None):
         self.origin = None if origin is None else np.asarray(origin, dtype=float)
         self.direction = None if direction is None else _unit(direction)
 
     def fit(self, X, weights=None):
-        X = np.asarray(X, dtype=float)
+        X, weights = self._fit_input(X, weights)
         mu = _weighted_mean(X, weights)
         d = _principal_axes(X, mu, weights)[0]
         if (X[-1] - X[0]) @ d < 0:  # q grows along the track
@@ -260,25 +317,33 @@ class PrismaticModel(PointModel):
         return self
 
     def motion(self, X):
+        if self.origin is None or self.direction is None:
+            raise self._not_fitted()
         return ((np.asarray(X) - self.origin) @ self.direction)[:, None]
 
     def predict(self, q):
-        return self.origin + np.asarray(q).reshape(-1, 1) * self.direction
+        if self.origin is None or self.direction is None:
+            raise self._not_fitted()
+        return self.origin + self._motion_input(q) * self.direction
 
     def jacobian(self, q):
-        assert self.direction is not None  # fitted
-        return self.direction.reshape(3, 1)
+        if self.direction is None:
+            raise self._not_fitted()
+        return self.direction.reshape(-1, 1)
 
     def predict1(self, q: float) -> np.ndarray:
-        assert self.origin is not None and self.direction is not None  # fitted
+        if self.origin is None or self.direction is None:
+            raise self._not_fitted()
         return self.origin + q * self.direction
 
     def jacobian1(self, q: float) -> np.ndarray:
-        assert self.direction is not None  # fitted
+        if self.direction is None:
+            raise self._not_fitted()
         return self.direction
 
     def configuration(self, dim=3):
-        assert self.origin is not None and self.direction is not None  # fitted
+        if self.origin is None or self.direction is None:
+            raise self._not_fitted()
         return {"origin": self.origin[:dim].tolist(), "direction": self.direction[:dim].tolist()}
 
 
@@ -288,6 +353,7 @@ class RevoluteModel(PointModel):
     name = "revolute"
     dof = 1
     n_params = {3: 6, 2: 3}  # the circle's plane (3-D only), its centre in the plane and radius
+    min_points = 3
 
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
         self.centre = None if centre is None else np.asarray(centre, dtype=float)
@@ -303,7 +369,7 @@ class RevoluteModel(PointModel):
         return self._v
 
     def fit(self, X, weights=None):
-        X = np.asarray(X, dtype=float)
+        X, weights = self._fit_input(X, weights)
         mu = _weighted_mean(X, weights)
         n = _unit(self.planar_axis) if self.planar_axis is not None else _principal_axes(X, mu, weights)[2]
         e1, e2 = _orthonormal_to(n)
@@ -326,29 +392,43 @@ class RevoluteModel(PointModel):
         self._v = _cross3(self.axis, self.u)
         return self
 
+    def _fitted(self) -> bool:
+        return self.centre is not None and self.axis is not None and self.radius is not None and self.u is not None
+
     def motion(self, X):
+        if not self._fitted():
+            raise self._not_fitted()
         d = np.asarray(X) - self.centre
         ang = np.arctan2(d @ self.v, d @ self.u)
         return np.unwrap(ang)[:, None]
 
     def predict(self, q):
-        q = np.asarray(q, dtype=float).reshape(-1, 1)
+        if not self._fitted():
+            raise self._not_fitted()
+        q = self._motion_input(q)
         return self.centre + self.radius * (np.cos(q) * self.u + np.sin(q) * self.v)
 
     def jacobian(self, q):
+        if not self._fitted():
+            raise self._not_fitted()
         q = float(np.asarray(q).reshape(-1)[0])
         assert self.u is not None  # fitted
         return (self.radius * (-math.sin(q) * self.u + math.cos(q) * self.v)).reshape(3, 1)
 
     def predict1(self, q: float) -> np.ndarray:
-        assert self.u is not None  # fitted
+        if self.u is None or self.centre is None:
+            raise self._not_fitted()
         return self.centre + (self.radius * math.cos(q)) * self.u + (self.radius * math.sin(q)) * self.v
 
     def jacobian1(self, q: float) -> np.ndarray:
+        if self.u is None:
+            raise self._not_fitted()
         return (-self.radius * math.sin(q)) * self.u + (self.radius * math.cos(q)) * self.v
 
     def configuration(self, dim=3):
-        assert self.centre is not None and self.axis is not None  # fitted
+        if not self._fitted():
+            raise self._not_fitted()
+        assert self.centre is not None and self.axis is not None
         out = {"centre": self.centre[:dim].tolist(), "radius": float(self.radius)}
         out["axis"] = self.axis.tolist()
         return out
@@ -360,6 +440,7 @@ class PlanarModel(PointModel):
     name = "planar"
     dof = 2
     n_params = {3: 3, 2: 0}  # the plane
+    min_points = 3
 
     def __init__(self, origin=None, normal=None, planar_axis=None):
         self.origin = None if origin is None else np.asarray(origin, dtype=float)
@@ -369,7 +450,7 @@ class PlanarModel(PointModel):
             self.u, self.v = _orthonormal_to(self.normal)
 
     def fit(self, X, weights=None):
-        X = np.asarray(X, dtype=float)
+        X, weights = self._fit_input(X, weights)
         mu = _weighted_mean(X, weights)
         if self.planar_axis is not None:
             n = _unit(self.planar_axis)
@@ -383,18 +464,25 @@ class PlanarModel(PointModel):
         return self
 
     def motion(self, X):
+        if self.origin is None or self.normal is None:
+            raise self._not_fitted()
         d = np.asarray(X) - self.origin
         return np.column_stack([d @ self.u, d @ self.v])
 
     def predict(self, q):
-        q = np.asarray(q, dtype=float).reshape(-1, 2)
+        if self.origin is None or self.normal is None:
+            raise self._not_fitted()
+        q = self._motion_input(q)
         return self.origin + q[:, :1] * self.u + q[:, 1:] * self.v
 
     def jacobian(self, q):
+        if self.origin is None or self.normal is None:
+            raise self._not_fitted()
         return np.column_stack([self.u, self.v])
 
     def configuration(self, dim=3):
-        assert self.origin is not None and self.normal is not None  # fitted
+        if self.origin is None or self.normal is None:
+            raise self._not_fitted()
         return {"origin": self.origin[:dim].tolist(), "normal": self.normal.tolist()}
 
 
@@ -403,6 +491,10 @@ POINT_MODELS = {"static": StaticModel, "prismatic": PrismaticModel, "revolute": 
 
 def make_model(name: str, dim: int = 3) -> PointModel:
     """A fresh model by name; for 2-D data the revolute/planar plane is fixed to ``z = 0``."""
+    if not isinstance(name, str) or name not in POINT_MODELS:
+        raise InputError(f"unknown point model {name!r}: expected one of {', '.join(POINT_MODELS)}")
+    if dim not in (2, 3):
+        raise InputError(f"point models work on 2-D or 3-D points, got dim={dim!r}")
     cls = POINT_MODELS[name]
     if name in ("revolute", "planar") and dim == 2:
         return cls(planar_axis=np.array([0.0, 0.0, 1.0]))

@@ -63,14 +63,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.articulation.models import as_points3, make_model
-from artmotion.errors import InputError
+from artmotion.articulation.models import MAX_COORD, POINT_MODELS, _float_array, as_points3, make_model
+from artmotion.errors import InputError, check_range
 from artmotion.filters import taylor_model, taylor_transition
 
 __all__ = ["OnlineEstimator", "OnlineResult", "autocorrelation_time", "curvature_occam", "estimate_online", "robust_scale"]
 
 _LOG2PI = math.log(2.0 * math.pi)
 _FQ_CACHE: dict = {}
+
+#: highest Taylor order of the motion model (``dt^order / order!`` must stay a usable float)
+MAX_ORDER = 8
+#: least and largest step between two samples' time stamps (their powers enter the motion model)
+MIN_STEP, MAX_STEP = 1e-12, 1e12
 
 
 def _median_rows(A: np.ndarray) -> np.ndarray:
@@ -433,12 +438,29 @@ class OnlineEstimator:
     ):
         if min_samples < 3:
             raise InputError("min_samples must be at least 3")
+        check_range("min_samples", min_samples, 3, 10**9, integer=True)
         if not 0.0 < threshold < 1.0:
             raise InputError("threshold must lie in (0, 1)")
         if not refit_growth > 1.0:
             raise InputError("refit_growth must exceed 1")
+        check_range("refit_growth", refit_growth, 1.0, 1e6, lo_open=True)
         if not temperature > 0.0:
             raise InputError("temperature must be positive")
+        check_range("temperature", temperature, 0.0, 1e3, lo_open=True)
+        models = [models] if isinstance(models, str) else list(models)
+        if not models or any(not isinstance(m, str) or m not in POINT_MODELS for m in models) \
+                or len(set(models)) != len(models):
+            raise InputError(f"models must name some of {', '.join(POINT_MODELS)} (each once), got {models!r}")
+        check_range("order", order, 1, MAX_ORDER, integer=True)
+        if dim not in (2, 3) or isinstance(dim, bool):
+            raise InputError(f"dim must be 2 or 3, got {dim!r}")
+        if noise is not None:
+            check_range("noise", noise, 0.0, math.inf, lo_open=True, hi_open=True)
+        check_range("noise_floor", noise_floor, 0.0, math.inf, hi_open=True)
+        if accel is not None:
+            check_range("accel", accel, 0.0, math.inf, hi_open=True)
+        if nu is not None:
+            check_range("nu", nu, 0.0, 1e6, lo_open=True)
         self.names = list(models)
         self.threshold = threshold
         self.min_samples = min_samples
@@ -690,13 +712,28 @@ class OnlineEstimator:
     # -- the algorithm
     def update(self, z, t: float | None = None) -> dict:
         """Add one observation (2-D or 3-D point); returns the current model probabilities."""
-        z = np.asarray(z, dtype=float).reshape(-1)
+        z = _float_array(z, "an observation").reshape(-1)
         if z.shape[0] == 2:
             z = np.array([z[0], z[1], 0.0])
+        if z.shape[0] != 3:
+            raise InputError(f"an observation must be a 2-D or 3-D point, got {z.shape[0]} values")
+        if not (abs(z[0]) <= MAX_COORD and abs(z[1]) <= MAX_COORD and abs(z[2]) <= MAX_COORD):
+            raise InputError(f"an observation must be finite coordinates of magnitude at most {MAX_COORD:g}, got {z.tolist()}")
         k = self._n
-        t = float(k) if t is None else float(t)
+        if t is None:
+            t = float(k)
+        else:
+            try:
+                t = float(t)
+            except (TypeError, ValueError):
+                raise InputError(f"a time stamp must be a number, got {t!r}") from None
+            if not math.isfinite(t):
+                raise InputError(f"time stamps must be finite, got {t}")
         if k and not t > self._Tbuf[k - 1]:
             raise InputError("time stamps must increase")
+        if k and not MIN_STEP <= t - self._Tbuf[k - 1] <= MAX_STEP:
+            raise InputError(f"steps between time stamps must lie in [{MIN_STEP:g}, {MAX_STEP:g}], "
+                             f"got {t - self._Tbuf[k - 1]:g}")
         if k == len(self._Tbuf):
             self._Xbuf = np.concatenate([self._Xbuf, np.empty_like(self._Xbuf)])
             self._Tbuf = np.concatenate([self._Tbuf, np.empty_like(self._Tbuf)])
@@ -780,6 +817,10 @@ class OnlineEstimator:
 def estimate_online(X, t=None, **kwargs) -> OnlineResult:
     """Run Algorithm 1 over a whole track ``X`` (``(n, 2)`` or ``(n, 3)``), sample by sample."""
     X3, dim = as_points3(X)
+    if t is not None:
+        t = _float_array(t, "time stamps")
+        if t.shape != (len(X3),):
+            raise InputError(f"t must hold one time stamp per sample ({len(X3)}), got shape {t.shape}")
     kwargs.setdefault("dim", dim)
     est = OnlineEstimator(**kwargs)
     for k in range(len(X3)):

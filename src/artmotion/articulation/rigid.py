@@ -23,16 +23,20 @@ From the recovered motions, relative to the first frame (``x^{t} = R x^{t0} + T`
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from artmotion.articulation.models import _orthonormal_to
-from artmotion.errors import InputError
+from artmotion.articulation.models import MAX_COORD, _float_array, _orthonormal_to
+from artmotion.errors import InputError, check_range
 from artmotion.geometry.rotations import quat_to_matrix
 
 __all__ = ["factorize", "classify_motion", "classify_points", "classify_poses", "RigidResult", "stack_w"]
+
+#: the factorisation methods of :func:`factorize`
+METHODS = ("auto", "orthonormal", "anchor")
 
 
 def stack_w(tracks: np.ndarray) -> np.ndarray:
@@ -71,11 +75,20 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
     ``method``: ``orthonormal`` (Eq. 4.7), ``anchor`` (first frame fixes the gauge) or ``auto``
     (Eq. 4.7 when its constraints determine ``Q``, else anchor).
     """
-    tracks = np.asarray(tracks, dtype=float)
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    tracks = _float_array(tracks, "rigid-body tracks")
     if tracks.ndim != 3 or tracks.shape[2] != 3 or tracks.shape[1] < 3 or tracks.shape[0] < 2:
         raise InputError(f"need at least 3 points over 2 frames as (frames, points, 3), got {tracks.shape}")
     if not np.all(np.isfinite(tracks)):
         raise InputError("rigid-body tracks contain NaN")
+    if float(np.abs(tracks).max()) > MAX_COORD:
+        raise InputError(f"rigid-body tracks must be coordinates of magnitude at most {MAX_COORD:g}")
+    first = tracks[0] - tracks[0].mean(axis=0)
+    sv0 = np.linalg.svd(first, compute_uv=False)
+    if not sv0[1] > 1e-9 * max(float(sv0[0]), float(np.abs(tracks[0]).max()), 1e-300):
+        raise InputError("the body's points lie on one line (or are one point) in the first frame: "
+                         "its rotation cannot be recovered; need 3 points not on one line")
     n_points = tracks.shape[1]
     if tracks.shape[1] == 3:  # a virtual fourth point off the plane of the three
         a, b, c = tracks[:, 0], tracks[:, 1], tracks[:, 2]
@@ -120,9 +133,15 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
         # Degenerate motion (no rotation, or rotation about one axis only): the orthonormality
         # constraints leave Q undetermined. 3-D tracks are metric already, so fix the gauge by
         # the first frame instead: M_0 A = [I | 0] and b A = e_4, i.e. A = [M^_0; b]^-1.
-        A = np.linalg.inv(np.vstack([Mh[[0, F, 2 * F]], b]))
-    S = np.linalg.solve(A, Sh)
-    shape = (S[:3] / S[3]).T
+        try:
+            A = np.linalg.inv(np.vstack([Mh[[0, F, 2 * F]], b]))
+        except np.linalg.LinAlgError:  # a degenerate gauge: the first frame's points serve as shape
+            A = np.full((4, 4), np.nan)
+    if np.all(np.isfinite(A)):
+        S = np.linalg.solve(A, Sh)
+        shape = (S[:3] / S[3]).T
+    else:
+        shape = np.full((tracks.shape[1], 3), np.nan)
     if not np.all(np.isfinite(shape)):
         shape = tracks[0].copy()
     # Every frame's motion from the factorised shape by orthogonal Procrustes (projects M's rows
@@ -238,8 +257,15 @@ def _relative(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Rr, tr
 
 
+def _check_noise_size(noise, size=None) -> None:
+    check_range("noise", noise, 0.0, math.inf, lo_open=True, hi_open=True)
+    if size is not None:
+        check_range("size", size, 0.0, math.inf, lo_open=True, hi_open=True)
+
+
 def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "auto") -> RigidResult:
     """Factorise ``(F, N, 3)`` point tracks of one body and classify its motion."""
+    _check_noise_size(noise)
     R, t, shape = factorize(tracks, method=method)
     Rr, tr = _relative(R, t)
     size = float(np.sqrt(((shape - shape.mean(axis=0)) ** 2).sum(axis=1).mean()))
@@ -251,7 +277,21 @@ def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "aut
 
 def classify_poses(positions: np.ndarray, quats: np.ndarray, noise: float = 0.005, size: float = 0.1) -> RigidResult:
     """Classify a 6-D pose track: positions ``(F, 3)`` and unit quaternions ``(F, 4)`` (x, y, z, w)."""
-    R = quat_to_matrix(np.asarray(quats, dtype=float))
-    t = np.asarray(positions, dtype=float)
+    _check_noise_size(noise, size)
+    t = _float_array(positions, "positions")
+    quats = _float_array(quats, "quaternions")
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise InputError(f"positions must be an (F, 3) array, got shape {t.shape}")
+    if quats.ndim != 2 or quats.shape[1] != 4:
+        raise InputError(f"quaternions must be an (F, 4) array (x, y, z, w), got shape {quats.shape}")
+    if len(t) != len(quats):
+        raise InputError(f"positions and quaternions must have as many rows, got {len(t)} and {len(quats)}")
+    if len(t) < 2:
+        raise InputError(f"a pose track needs at least 2 poses, got {len(t)}")
+    if not np.all(np.isfinite(t)):
+        raise InputError("positions contain NaN or infinite values")
+    if float(np.abs(t).max()) > MAX_COORD:
+        raise InputError(f"positions must be coordinates of magnitude at most {MAX_COORD:g}")
+    R = quat_to_matrix(quats)
     Rr, tr = _relative(R, t)
     return classify_motion(Rr, tr, noise=noise, size=size, centre=t[0])

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from artmotion.errors import InputError
+
 
 def taylor_transition(order: int, dt: float) -> np.ndarray:
     """``A`` of Eq. 4.14 for a state of ``order`` entries (``order >= 1``)."""
@@ -37,9 +39,13 @@ def taylor_model(order: int, dt: float, noise_var: float = 1.0, dims: int = 1) -
     ``Q = B noise_var B^T`` per axis (the discrete white-noise model of Eq. 4.13); the state is
     ordered axis by axis: ``[q_1, q_1', ..., q_2, q_2', ...]`` (as Eq. 2.10).
     """
+    if isinstance(dims, bool) or not isinstance(dims, (int, np.integer)) or dims < 1:
+        raise InputError(f"dims must be a whole number of axes >= 1, got {dims!r}")
+    q = np.atleast_1d(np.asarray(noise_var, dtype=float))
+    if q.ndim != 1 or q.size not in (1, dims):
+        raise InputError(f"noise variances must be one number or one per axis ({dims}), got {q.size}")
     A = taylor_transition(order, dt)
     B = white_noise_input(order, dt)
-    q = np.atleast_1d(np.asarray(noise_var, dtype=float))
     if q.size == 1:
         q = np.repeat(q, dims)
     F = np.kron(np.eye(dims), A)

@@ -23,13 +23,17 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.geometry import box_center
+from artmotion.io.events import EVENT_TYPES, event_problem
+from artmotion.io.media import MAX_FPS, MIN_FPS
+from artmotion.io.mot import MAX_COORD, check_ids, check_mot_rows
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 from artmotion.language.grammar import SIDES, Triplet, join_subjects, noun_phrase, render
 
@@ -96,9 +100,12 @@ def tracks_from_mot(rows: np.ndarray) -> dict[int, Track]:
     """Group an ``(N, >=6)`` MOT array by track id, interpolating the centre over gaps."""
     rows = np.asarray(rows, dtype=float)
     out: dict[int, Track] = {}
-    for tid in np.unique(rows[:, 1]).astype(int):
-        r = rows[rows[:, 1] == tid]
-        r = r[np.argsort(r[:, 0], kind="stable")]
+    if not len(rows):
+        return out
+    rows = rows[np.lexsort((rows[:, 0], rows[:, 1]))]           # by track, then frame (stable)
+    cuts = np.flatnonzero(np.diff(rows[:, 1])) + 1
+    for r in np.split(rows, cuts):
+        tid = int(r[0, 1])
         f = r[:, 0].astype(int)
         f, first = np.unique(f, return_index=True)  # duplicate frames: keep the first box
         r = r[first]
@@ -236,6 +243,29 @@ def _pair(a: Track, b: Track) -> _Pair | None:
     ib = slice(int(f0 - b.frames[0]), int(f1 - b.frames[0]) + 1)
     h = 0.5 * (a.height + b.height)
     return _Pair(int(f0), ia, ib, h, np.hypot(a.cx[ia] - b.cx[ib], a.cy[ia] - b.cy[ib]) / h)
+
+
+def _near_pairs(tracks: list[Track], near: float) -> Iterator[tuple[int, int]]:
+    """The ids ``(a, b)`` of the pairs of ``tracks`` (``a`` listed first) that share a frame and whose
+    centres' extents come within ``near`` of their mean height: every pair that can be together or
+    approach each other (both need a frame closer than ``near``); the others are not looked at,
+    which keeps many tracks (a long video) from costing a Python call per pair."""
+    if len(tracks) < 2:
+        return
+    ids = np.array([t.tid for t in tracks])
+    first = np.array([t.frames[0] for t in tracks])
+    last = np.array([t.frames[-1] for t in tracks])
+    x0, x1 = np.array([t.cx.min() for t in tracks]), np.array([t.cx.max() for t in tracks])
+    y0, y1 = np.array([t.cy.min() for t in tracks]), np.array([t.cy.max() for t in tracks])
+    h = np.array([t.height for t in tracks])
+    for i in range(len(tracks) - 1):
+        j = np.arange(i + 1, len(tracks))
+        gx = np.maximum(0.0, np.maximum(x0[i], x0[j]) - np.minimum(x1[i], x1[j]))
+        gy = np.maximum(0.0, np.maximum(y0[i], y0[j]) - np.minimum(y1[i], y1[j]))
+        ok = (np.maximum(first[i], first[j]) <= np.minimum(last[i], last[j])) & \
+            (np.hypot(gx, gy) <= near * 0.5 * (h[i] + h[j]))
+        for k in j[ok]:
+            yield int(ids[i]), int(ids[k])
 
 
 def _together_runs(
@@ -453,7 +483,18 @@ def describe(
 ) -> list[Triplet]:
     """Triplets (with their sentences) for tracks, events and a pose sequence, ordered by frame."""
     p = params or DescribeParams()
-    tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
+    tracks = check_mot_rows(tracks, "tracks")
+    check_ids(tracks, "tracks", None)
+    for k, ev in enumerate(events or []):       # types outside the grammar are passed over, unread
+        problem = event_problem(ev) if not isinstance(ev, dict) or ev.get("type") in EVENT_TYPES else None
+        if problem is not None:
+            raise InputError(f"event {k + 1}: {problem}")
+    if fps is not None:
+        check_range("fps", fps, MIN_FPS, MAX_FPS)
+    if image_size is not None and not (len(image_size) == 2 and all(0 < v <= MAX_COORD for v in image_size)):
+        raise InputError(f"image_size must be (width, height) in pixels, got {image_size!r}")
+    if not (isinstance(classes, tuple) and len(classes) == 2 and isinstance(classes[1], dict)):
+        raise InputError(f"classes must be (default class, {{track id: class}}), got {classes!r}")
     default_cls, per_track = classes
     cls_of = lambda tid: per_track.get(tid, default_cls)  # noqa: E731
     subj = lambda tid, cap=True: noun_phrase(cls_of(tid), tid, capital=cap)  # noqa: E731
@@ -472,6 +513,8 @@ def describe(
         events = _track_events(table, tracks, image_size, p)
     if events is not None:
         for ev in events:
+            if ev["type"] not in EVENT_TYPES:
+                continue            # not in the grammar: nothing is said about it
             kind, f, ids = ev["type"], int(ev["frame"]), [int(i) for i in ev["tracks"]]
             span = (f, int(ev.get("end_frame", f)))
             if kind in ("enter", "exit") and ids:
@@ -488,7 +531,6 @@ def describe(
                 if "group" in ev:
                     trip.object = f"group {ev['group']}"
                 add(trip)
-            # other event types are not in the grammar: nothing is said about them
     # motion of each track
     vel = {tid: _velocity(t, p) for tid, t in table.items()}
     for tid, t in table.items():
@@ -500,18 +542,17 @@ def describe(
     # interactions between pairs of tracks; co-moving pairs that overlap in time form groups
     ids = sorted(table)
     walks: list[tuple[int, int, int, int]] = []
-    for i, ta in enumerate(ids):
-        for tb in ids[i + 1 :]:
-            pair = _pair(table[ta], table[tb])
-            if pair is None:
-                continue
-            for a, b, moving in _together_runs(pair, vel[ta], vel[tb], p):
-                if cls_of(ta) == cls_of(tb) and moving:
-                    walks.append((ta, tb, a, b))
-                else:
-                    add(Triplet(subj(ta), "interacts with", None, subj(tb, False), (a, b), [ta, tb]))
-            for a, b, verb in _approach_runs(pair, vel[ta], vel[tb], p):
-                add(Triplet(join_subjects([subj(ta), subj(tb, False)]), verb, None, None, (a, b), [ta, tb]))
+    for ta, tb in _near_pairs([table[t] for t in ids], p.near):
+        pair = _pair(table[ta], table[tb])
+        if pair is None:
+            continue
+        for a, b, moving in _together_runs(pair, vel[ta], vel[tb], p):
+            if cls_of(ta) == cls_of(tb) and moving:
+                walks.append((ta, tb, a, b))
+            else:
+                add(Triplet(subj(ta), "interacts with", None, subj(tb, False), (a, b), [ta, tb]))
+        for a, b, verb in _approach_runs(pair, vel[ta], vel[tb], p):
+            add(Triplet(join_subjects([subj(ta), subj(tb, False)]), verb, None, None, (a, b), [ta, tb]))
     for members, (a, b) in _groups(walks):
         dx = np.mean([table[m].cx[b - table[m].frames[0]] - table[m].cx[a - table[m].frames[0]] for m in members])
         dy = np.mean([table[m].cy[b - table[m].frames[0]] - table[m].cy[a - table[m].frames[0]] for m in members])

@@ -10,10 +10,13 @@ calibration rows).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.filters import constant_velocity
+from artmotion.io.mot import MAX_FRAME
 
 __all__ = ["ACCEL_SCALES", "PoseFilter", "accel_variance", "tune_filter"]
 
@@ -87,6 +90,21 @@ def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.
     return scale, band[0], band[1]
 
 
+def _numbers(name: str, value) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of numbers") from None
+
+
+def _positive(name: str, value) -> np.ndarray:
+    """``value`` as a float array of finite positive numbers, else an :class:`InputError`."""
+    a = np.atleast_1d(_numbers(name, value))
+    if not (np.all(np.isfinite(a)) and np.all(a > 0.0)):
+        raise InputError(f"{name} must be finite and positive, got {a.ravel()[:8].tolist()}")
+    return a if np.ndim(value) else a.reshape(())
+
+
 class PoseFilter:
     """Per-angle Kalman filter, constant velocity with white-noise acceleration (Eq. 3.6, 3.7).
 
@@ -98,12 +116,14 @@ class PoseFilter:
     """
 
     def __init__(self, accel_var, dt: float = 1.0, filter_std=1.0, smooth_std=1.0):
-        self.accel_var = np.atleast_1d(np.asarray(accel_var, dtype=float))
-        self.dt = float(dt)
+        self.accel_var = np.atleast_1d(_positive("accel_var", accel_var))
+        if self.accel_var.ndim != 1 or not len(self.accel_var):
+            raise InputError(f"accel_var must be one variance per angle, got shape {self.accel_var.shape}")
+        self.dt = float(check_range("dt", dt, 0.0, math.inf, lo_open=True, hi_open=True))
         # multipliers of the standard deviations that ``filter``/``step`` and ``smooth`` return
         # (:func:`tune_filter`: the filter's own covariance takes the errors as independent)
-        self.filter_std = np.asarray(filter_std, dtype=float)
-        self.smooth_std = np.asarray(smooth_std, dtype=float)
+        self.filter_std = _positive("filter_std", filter_std)
+        self.smooth_std = _positive("smooth_std", smooth_std)
         self.reset()
 
     def reset(self) -> None:
@@ -121,12 +141,32 @@ class PoseFilter:
         self.P[:, 0, 0] = var
         self.P[:, 1, 1] = np.maximum(var, self.accel_var) * 10.0
 
+    def _check(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
+        """``mean`` and ``std`` as 2-D float arrays of the same shape, one column per angle, finite
+        (``std`` non-negative); else an :class:`InputError`."""
+        mean = np.atleast_2d(_numbers("mean", mean))
+        std = np.atleast_2d(_numbers("std", std))
+        if mean.ndim != 2 or mean.shape[1] != len(self.accel_var):
+            raise InputError(f"expected {len(self.accel_var)} angles per row of means, got shape {mean.shape}")
+        if std.shape != mean.shape:
+            raise InputError(f"std must have the shape of the means {mean.shape}, got {std.shape}")
+        if not np.all(np.isfinite(mean)):
+            raise InputError("the means contain NaN or infinite values")
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0.0)):
+            raise InputError("the standard deviations must be finite and non-negative")
+        return mean, std
+
     def step(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         """Fuse one frame's GP prediction (mean and std per angle); return the filtered state."""
         z = np.asarray(mean, dtype=float).ravel()
-        var = np.maximum(np.asarray(std, dtype=float).ravel() ** 2, 1e-9)
         if len(z) != len(self.accel_var):
             raise InputError(f"expected {len(self.accel_var)} angles, got {len(z)}")
+        mean, std = self._check(z[None, :], np.asarray(std, dtype=float).reshape(1, -1))
+        return self._step(mean[0], std[0])
+
+    def _step(self, z: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`step` on checked input."""
+        var = np.maximum(std**2, 1e-9)
         if self.x is None:
             self._start(z, var)
             return z.copy(), np.sqrt(var) * self.filter_std
@@ -143,13 +183,12 @@ class PoseFilter:
 
     def _forward(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         """The forward pass over a sequence: every frame's filtered state and covariance."""
-        mean = np.atleast_2d(np.asarray(mean, dtype=float))
-        std = np.atleast_2d(np.asarray(std, dtype=float))
+        mean, std = self._check(mean, std)
         self.reset()
         T, k = mean.shape
         xs, Ps = np.empty((T, k, 2)), np.empty((T, k, 2, 2))
         for t in range(T):
-            self.step(mean[t], std[t])
+            self._step(mean[t], std[t])
             assert self.x is not None  # set by the first step
             xs[t], Ps[t] = self.x, self.P
         return xs, Ps
@@ -184,12 +223,16 @@ class PoseFilter:
         between two rows (a track that lost its box) is a step of the motion model without a
         measurement, so the prior bridges the gap as far as it deserves, instead of taking the
         rows on either side for neighbours."""
-        mean = np.atleast_2d(np.asarray(mean, dtype=float))
-        std = np.atleast_2d(np.asarray(std, dtype=float))
+        mean, std = self._check(mean, std)
         if frames is not None:
-            frames = np.asarray(frames)
+            frames = _numbers("frames", frames)
+            if frames.ndim != 1 or not np.all(np.isfinite(frames)) or np.any(frames != np.round(frames)):
+                raise InputError("frames must be whole numbers, one per row")
             if len(frames) != len(mean) or np.any(np.diff(frames) < 1):
                 raise InputError("frames must number the rows, increasing")
+            if len(frames) and frames[-1] - frames[0] + 1 > MAX_FRAME:
+                raise InputError(f"frames must span at most {MAX_FRAME} frames, got {frames[-1] - frames[0] + 1:.0f}")
+            frames = frames.astype(np.int64)
             if len(frames) and frames[-1] - frames[0] + 1 > len(frames):
                 at = frames - frames[0]
                 full_mean = np.zeros((at[-1] + 1, mean.shape[1]))

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from artmotion.errors import InputError, need_package
+from artmotion.errors import InputError, check_range, check_seed, need_package
 from artmotion.io import atomic_path
 from artmotion.io.files import read_head
 from artmotion.pose import features as F
@@ -51,6 +51,24 @@ def _threads():
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
+
+
+#: largest count a parameter (steps, inducing inputs, neighbours, ...) may be
+_MAX_COUNT = 2**31 - 1
+
+
+@functools.cache
+def _not_fitted_error() -> type:
+    """The error of a model used before :meth:`PoseRegressor.fit`: an :class:`InputError` (one line
+    from the command line) that is also scikit-learn's ``NotFittedError`` (made on first use:
+    importing scikit-learn takes a while)."""
+    from sklearn.exceptions import NotFittedError
+
+    return type("PoseNotFittedError", (InputError, NotFittedError), {"__module__": __name__})
+
+
+def _not_fitted() -> InputError:
+    return _not_fitted_error()("this PoseRegressor is not fitted yet: call fit() or PoseRegressor.load() first")
 
 
 def is_opening(name: str) -> bool:
@@ -153,8 +171,38 @@ class PoseRegressor:
         self.pca_mean_: np.ndarray | None = None
         self.pca_components_: np.ndarray | None = None
 
+    def _check_params(self) -> None:
+        """The parameters checked, as :meth:`fit` needs them (scikit-learn checks in ``fit``, not in
+        ``__init__``: a parameter may be set after the model is made); the ranges are those
+        :meth:`load` accepts in a model file."""
+        for name, choice, choices in (("feature", self.feature, F.FEATURES), ("method", self.method, ("auto", "exact", "sparse")),
+                                      ("inducing", self.inducing, ("kmeans", "random")), ("net_mean", self.net_mean, NET_MEANS)):
+            if choice not in choices:
+                raise InputError(f"unknown {name} {choice!r}; choose one of {', '.join(choices)}")
+        check_range("cell", self.cell, 2, 256, integer=True)
+        if not isinstance(self.size, tuple) or len(self.size) != 2:
+            raise InputError(f"size must be a (width, height) pair, got {self.size!r}")
+        for v in self.size:
+            check_range("size (crop width and height)", v, 8, 4096, integer=True)
+        check_range("blur", self.blur, 0.0, 100.0)
+        # (one hyper-parameter optimisation row gives NaN hyper-parameters: n_opt at least 2)
+        for name, value, lo in (("max_exact", self.max_exact, 0), ("n_inducing", self.n_inducing, 1),
+                                ("n_opt", self.n_opt, 2), ("restarts", self.restarts, 0), ("net_steps", self.net_steps, 1)):
+            check_range(name, value, lo, _MAX_COUNT, integer=True)
+        for name, optional in (("n_components", self.n_components), ("neighbours", self.neighbours),
+                               ("n_inducing_var", self.n_inducing_var)):
+            if optional is not None:  # None: the raw feature, the exact variance, all inducing inputs
+                check_range(name, optional, 1, _MAX_COUNT, integer=True)
+        check_seed(self.seed, "seed")
+        check_range("opening_weight", self.opening_weight, 0.0, 1e6)
+        check_range("net_beta", self.net_beta, 0.0, 1e6)
+
     # -- features
     def features(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        # (crop by crop: no mask as large as a whole stack of float crops; integer crops need none)
+        if not (isinstance(images, np.ndarray) and images.dtype.kind not in "fc") and any(
+                np.asarray(im).dtype.kind in "fc" and not np.isfinite(im).all() for im in images):
+            raise InputError("a crop holds NaN or infinite pixel values")
         return F.extract(images, self.feature, self.size, self.cell, blur=self.blur)
 
     def _project(self, X: np.ndarray, views: np.ndarray | None = None) -> np.ndarray:
@@ -201,16 +249,23 @@ class PoseRegressor:
         that every kind of training motion is in the calibration, and the motion prior's second
         differences never straddle two groups. Without ``groups`` the rows are one sequence. On the
         same rows the filter is tuned (:func:`tune_filter`)."""
-        X = self._as_features(images)
+        self._check_params()
         Y = np.asarray(Y, dtype=float)
-        Y = Y.reshape(len(Y), -1)
+        if Y.ndim == 1:
+            Y = Y[:, None]
+        if Y.ndim != 2 or Y.shape[1] == 0:
+            raise InputError(f"labels must be a matrix of one row per crop and one column per angle, got shape {Y.shape}")
+        if not np.all(np.isfinite(Y)):
+            raise InputError("labels contain NaN or infinite values")
+        if Y.size and np.abs(Y).max() > _MAX_VALUE:  # (the GP's standardisation would overflow)
+            raise InputError(f"labels hold values beyond ±{_MAX_VALUE:g}")
+        names = _angle_names(names, Y.shape[1])
+        X = self._as_features(images)
         if len(X) != len(Y):
             raise InputError(f"{len(X)} images but {len(Y)} label rows")
         if len(X) < 3:
             raise InputError("need at least 3 training examples")
-        if not np.all(np.isfinite(Y)):
-            raise InputError("labels contain NaN or infinite values")
-        self.names_ = list(names) if names is not None else [f"angle{k}" for k in range(Y.shape[1])]
+        self.names_ = names
         self.pca_mean_ = self.pca_components_ = None
         self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None
         V = self._check_views(views, len(X), fitting=True)
@@ -256,25 +311,48 @@ class PoseRegressor:
             self.accel_var_ = self.accel_var_ * scale
         return self
 
+    @staticmethod
+    def _is_matrix(images) -> bool:
+        """Whether ``images`` is a feature matrix (checked: finite numbers) rather than crops (a
+        list, or an ``(n, H, W[, 3])`` array); one image is neither (its rows are no crops)."""
+        if not isinstance(images, np.ndarray):
+            return False
+        if images.ndim == 2 and images.dtype != np.uint8:
+            if images.dtype.kind not in "fiu":
+                raise InputError(f"a feature matrix must hold real numbers, got {images.dtype}")
+            if not np.isfinite(images).all():
+                raise InputError("the feature matrix holds NaN or infinite values")
+            if images.size and np.abs(images).max() > _MAX_VALUE:
+                raise InputError(f"the feature matrix holds values beyond ±{_MAX_VALUE:g}")
+            return True
+        if images.ndim == 2 or (images.ndim == 3 and images.shape[2] in (3, 4)):
+            raise InputError(f"expected a list of crops or a feature matrix, got one "
+                             f"{'x'.join(map(str, images.shape))} image: pass [image] for one crop")
+        return False
+
     def _as_features(self, images) -> np.ndarray:
-        if isinstance(images, np.ndarray) and images.ndim == 2 and images.dtype != np.uint8:
-            return images
-        return self.features(images)
+        return images if self._is_matrix(images) else self.features(images)
 
     def predict(self, images, return_std: bool = False, batch: int = 256, views=None):
         """Mean (and std) of every angle for crops or a feature matrix (and their ``views`` if the
         model was trained with them); chunks of ``batch`` frames run on a small thread pool (NumPy
         and OpenCV release the GIL; the network runs on torch's own threads)."""
         gp = self.gp_
-        if gp is None:
-            raise RuntimeError("PoseRegressor is not fitted")
-        assert self.names_ is not None  # set with ``gp_``
+        if gp is None or self.names_ is None:
+            raise _not_fitted()
+        check_range("batch", batch, 1, _MAX_COUNT, integer=True)
+        matrix = self._is_matrix(images)  # (checked once here, not again in every chunk)
+        if matrix:
+            dim = (self.pca_mean_.shape[0] if self.pca_mean_ is not None
+                   else F.feature_dim(self.feature, self.size, self.cell) if self.net_ is not None else gp.X.shape[1])
+            if images.shape[1] != dim:
+                raise InputError(f"the feature matrix has {images.shape[1]} columns, but this model takes {dim}")
         V = self._check_views(views, len(images))
         if self.net_ is not None:  # the network runs on the whole batch, on torch's threads
-            images = self._project(self._as_features(images), V)
+            images = self._project(images if matrix else self.features(images), V)
             prepare = None
         else:
-            prepare = lambda part: self._project(self._as_features(part))  # noqa: E731
+            prepare = lambda part: self._project(part if matrix else self.features(part))  # noqa: E731
 
         def work(s):
             part = images[s : s + batch]
@@ -331,7 +409,7 @@ class PoseRegressor:
 
         gp = self.gp_
         if gp is None:
-            raise RuntimeError("PoseRegressor is not fitted")
+            raise _not_fitted()
         n = len(images)
         if n == 0:  # nothing to judge (and no views to check: a run with no tracks has none)
             return float("nan")
@@ -354,14 +432,15 @@ class PoseRegressor:
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
         """The model's Kalman filter: its acceleration variance from the training labels, scaled on
         the calibration rows, and its bands calibrated there (:func:`tune_filter`); ``dt`` in frames."""
-        assert self.accel_var_ is not None and self.filter_std_ is not None and self.smooth_std_ is not None, \
-            "PoseRegressor is not fitted"
+        if self.accel_var_ is None or self.filter_std_ is None or self.smooth_std_ is None:
+            raise _not_fitted()
         return PoseFilter(self.accel_var_, dt, self.filter_std_, self.smooth_std_)
 
     # -- persistence
     def save(self, path: str | os.PathLike) -> None:
         gp = self.gp_
-        assert gp is not None and self.accel_var_ is not None and self.filter_std_ is not None, "PoseRegressor is not fitted"
+        if gp is None or self.accel_var_ is None or self.filter_std_ is None:
+            raise _not_fitted()
         neighbours = getattr(gp, "neighbours", None)
         data: dict[str, Any]  # arrays only; ``Any`` because ``**data`` also meets savez' ``allow_pickle: bool``
         data = dict(
@@ -424,6 +503,21 @@ class PoseRegressor:
         except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         return reg
+
+
+def _angle_names(names, k: int) -> list[str]:
+    """``names`` of ``k`` angles checked as :meth:`PoseRegressor.load` reads them back (``angle0``,
+    ``angle1``, ... for None)."""
+    if names is None:
+        return [f"angle{i}" for i in range(k)]
+    if isinstance(names, str):
+        raise InputError(f"names must be a list of {k} angle names, not one string")
+    names = list(names)
+    if len(names) != k:
+        raise InputError(f"{len(names)} angle names for {k} label columns")
+    if not all(isinstance(n, str) and n for n in names) or len(set(names)) != k:
+        raise InputError(f"angle names must be distinct, non-empty strings, got {names!r}")
+    return names
 
 
 def _array(d: dict, key: str, shape: tuple, kind: str = "f") -> np.ndarray:

@@ -134,11 +134,13 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     say it (a folder of images; else 25 is assumed) or says it wrong.
     """
     from artmotion.tracking.detect import load_detections
-    from artmotion.tracking.detectors import check_detector, make_detector
+    from artmotion.tracking.detectors import Detector, check_detector, make_detector
 
     experts = _check_experts(experts)
     if isinstance(detector, str):
         check_detector(detector)
+    elif not isinstance(detector, Detector):
+        raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
     check_range("--detect-every", detect_every, 1, 100, integer=True)
     seq = open_sequence(source)
     if fps is not None:

@@ -11,10 +11,24 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Any
 
+from artmotion.errors import InputError, check_range
+
 __all__ = ["DETECT_EVERY", "TrackerConfig"]
 
 #: the built-in detector runs on every this many frames (docs/tracking.md, "Built-in detector")
 DETECT_EVERY = 2
+
+
+#: what ``experts_when`` may say
+EXPERTS_WHEN = ("all", "lost", "none")
+#: settings that are scores, IoUs or shares, in [0, 1] (gates that 0 would shut: in (0, 1])
+_SHARES = frozenset({"high", "low", "match_iou", "birth_iou", "merge_iou", "join_ratio", "duplicate_share",
+                     "min_track_score"})
+_OPEN_SHARES = frozenset({"match_iou", "birth_iou", "merge_iou"})
+#: the least value of the whole-number settings
+_INT_LEAST = {"confirm_hits": 1, "app_parts": 1}
+#: the largest value of any other setting (seconds, box sizes, KL divergences, noise levels)
+_MAX_VALUE = 1e6
 
 
 @dataclass
@@ -68,6 +82,28 @@ class TrackerConfig:
     # -- online output and events ------------------------------------------------------------
     online_coast: float = 0.0   #: seconds an online result keeps reporting a lost track
     split_hold: float = 0.3     #: seconds a split must hold; a re-merge within it continues the group
+
+    def check(self) -> TrackerConfig:
+        """This configuration, or an :class:`~artmotion.errors.InputError` naming the first setting
+        out of its range (a NaN gate once gave no tracks without a word; an infinite time a
+        deep OverflowError)."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type in ("bool", bool):
+                if not isinstance(v, bool):
+                    raise InputError(f"{f.name} must be True or False, got {v!r}")
+            elif f.name == "experts_when":
+                if v not in EXPERTS_WHEN:
+                    raise InputError(f"experts_when must be one of {', '.join(EXPERTS_WHEN)}, got {v!r}")
+            elif f.type in ("int", int):
+                if isinstance(v, bool) or not isinstance(v, int):
+                    raise InputError(f"{f.name} must be a whole number, got {v!r}")
+                check_range(f.name, v, _INT_LEAST.get(f.name, 0), 1000)
+            elif f.name in _SHARES:
+                check_range(f.name, v, 0.0, 1.0, lo_open=f.name in _OPEN_SHARES)
+            else:
+                check_range(f.name, v, 0.0, _MAX_VALUE)
+        return self
 
     @classmethod
     def names(cls) -> list[str]:

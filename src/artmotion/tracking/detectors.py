@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError, check_range
+from artmotion.io.mot import MAX_BOXES_PER_FRAME, MAX_COORD
 
 __all__ = ["DETECTORS", "Detector", "HOGDetector", "SSDLiteDetector", "check_detector", "make_detector", "ssdlite_weights"]
 
@@ -48,7 +49,29 @@ class Detector:
         raise NotImplementedError
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
-        boxes, scores = self.detect(frame)
+        """The ``(N, 5)`` rows ``x, y, w, h, score`` of ``detect(frame)``, checked: a detector of the
+        user's own is held to what a detections file is (finite boxes of positive size, scores in
+        [0, 1], one score per box, at most :data:`~artmotion.io.mot.MAX_BOXES_PER_FRAME`)."""
+        out = self.detect(frame)
+        who = f"detector {self.name or type(self).__name__}"
+        try:
+            boxes, scores = out
+            boxes = np.asarray(boxes, dtype=float).reshape(-1, 4) if np.size(boxes) else np.zeros((0, 4))
+            scores = np.asarray(scores, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{who}: detect(frame) must return (boxes (N, 4), scores (N,)), got "
+                             f"{type(out).__name__}") from None
+        if len(boxes) != len(scores):
+            raise InputError(f"{who}: {len(boxes)} boxes but {len(scores)} scores")
+        if not (np.isfinite(boxes).all() and np.isfinite(scores).all()):
+            raise InputError(f"{who}: NaN or infinite box or score")
+        if (boxes[:, 2:] <= 0).any() or (np.abs(boxes) > MAX_COORD).any():
+            raise InputError(f"{who}: boxes must have a positive size and coordinates within {MAX_COORD:g} px")
+        if ((scores < 0) | (scores > 1)).any():
+            raise InputError(f"{who}: scores must lie in [0, 1]")
+        if len(boxes) > MAX_BOXES_PER_FRAME:
+            raise InputError(f"{who}: {len(boxes)} boxes in one frame, more than artmotion tracks "
+                             f"({MAX_BOXES_PER_FRAME})")
         return np.column_stack([boxes, scores]) if len(scores) else np.zeros((0, 5))
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix, max_iou
 from artmotion.tracking.appearance import kl_matrix, rgb_histogram
 from artmotion.tracking.association import INF, assign, iou_cost
@@ -101,7 +102,9 @@ class OnlineTracker:
 
     def __init__(self, fps: float, width: int, height: int, experts=("det", "motion"),
                  config: TrackerConfig | None = None):
-        self.cfg = cfg = config or TrackerConfig()
+        if config is not None and not isinstance(config, TrackerConfig):
+            raise InputError(f"config must be a TrackerConfig, got {type(config).__name__}")
+        self.cfg = cfg = (config or TrackerConfig()).check()
         self.fps = float(fps) if fps and fps > 0 else 25.0
         self.dt = 1.0 / self.fps
         self.width, self.height = int(width), int(height)

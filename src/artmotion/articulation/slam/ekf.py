@@ -17,10 +17,12 @@ Jacobians (Eq. 4.27-4.28). Data association is known (landmark ids).
 from __future__ import annotations
 
 import math
+import reprlib
 
 import numpy as np
 
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
+from artmotion.errors import InputError
 
 __all__ = ["motion_model", "control_noise", "observe", "inverse_observation", "gate_threshold", "EKFSlam"]
 
@@ -88,6 +90,32 @@ def gate_threshold(p: float) -> float:
     if not 0.0 < p < 1.0:
         raise ValueError("the gate's probability must lie in (0, 1)")
     return -2.0 * math.log(p)
+
+
+def _numeric(a) -> bool:
+    """Whether ``a`` makes a NumPy array of real numbers (not text, objects or ragged lists)."""
+    try:
+        return np.asarray(a).dtype.kind in "biuf"
+    except ValueError:  # a ragged list
+        return False
+
+
+def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
+    """``ids`` as whole numbers and ``zs`` as a ``(k, 2)`` array of finite (range, bearing) pairs, one
+    per id; else an :class:`InputError` (before the filter's state is touched)."""
+    idx = np.asarray(ids) if _numeric(ids) else None
+    if idx is None or idx.ndim != 1 or (idx.size and not (np.isfinite(idx).all() and (idx == np.round(idx)).all())):
+        raise InputError(f"landmark ids must be a list of whole numbers, got {reprlib.repr(ids)}")
+    Z = np.asarray(zs, dtype=float) if _numeric(zs) else None
+    if Z is not None and Z.size == 0:
+        Z = Z.reshape(0, 2)
+    if Z is None or Z.ndim != 2 or Z.shape[1] != 2:
+        raise InputError(f"sightings must be (range, bearing) pairs, one row each, got {reprlib.repr(zs)}")
+    if len(Z) != len(idx):
+        raise InputError(f"{len(idx)} landmark ids but {len(Z)} sightings")
+    if not np.isfinite(Z).all():
+        raise InputError("a sighting holds a NaN or infinite range or bearing")
+    return idx.astype(int).tolist(), Z
 
 
 # ---------------------------------------------------------------- the filter
@@ -191,6 +219,11 @@ class EKFSlam:
 
     # -- time update (robot and moving landmarks)
     def predict(self, u):
+        """The time update with control ``u = (v, omega)``."""
+        U = np.asarray(u, dtype=float) if _numeric(u) else None
+        if U is None or U.shape != (2,) or not np.isfinite(U).all():
+            raise InputError(f"a control must be two finite numbers (v, omega), got {reprlib.repr(u)}")
+        u = (float(U[0]), float(U[1]))
         n = self.n
         mu, P = self.mu, self.P
         xn, Gx, Gu = motion_model(mu[:3], u, self.dt)
@@ -218,8 +251,10 @@ class EKFSlam:
 
     # -- measurement update
     def update(self, ids, zs):
+        """The measurement update with sightings ``zs`` ``(k, 2)`` (range, bearing) of landmarks ``ids`` ``(k,)``."""
+        ids, zs = _check_sightings(ids, zs)
         known = []
-        for i, z in zip(np.asarray(ids, dtype=int).tolist(), zs):
+        for i, z in zip(ids, zs):
             if self.articulated and i not in self.models.verdict and self._learn(i, z):
                 continue  # the sighting initialised the landmark in the state with its model
             if i in self.blocks:

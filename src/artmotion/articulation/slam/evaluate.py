@@ -9,7 +9,7 @@ import numpy as np
 
 from artmotion.articulation.slam.ekf import EKFSlam, _wrap
 from artmotion.articulation.slam.world import WORLDS, World, make_scenario, make_world, simulate
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
 
 #: the back ends compared by :func:`monte_carlo`: name -> (label, constructor keyword arguments);
 #: "graph" is the factor graph of :mod:`~artmotion.articulation.slam.graph` (needs the ``slam`` extra)
@@ -125,9 +125,13 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
     replaces the world by :func:`make_world` with those counts; ``options``: back end name -> keyword
     arguments for it.
     """
-    if runs < 1 or (steps is not None and steps < 2):
-        raise InputError("need at least one run of at least two steps")
+    runs = check_range("runs", runs, 1, 10**6, integer=True)
+    if steps is not None:
+        steps = check_range("steps", steps, 2, 10**7, integer=True)
+    seed = check_seed(seed, "seed")
     steps = steps or WORLDS[world][1]
+    if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= steps:
+        raise InputError(f"lag must be a whole number of steps in [0, {steps}] (the run's length; 0: all pairs), got {lag!r}")
     acc: dict[str, list[dict[str, float]]] = {name: [] for name in backends}
     last = None
     for r in range(runs):

@@ -25,7 +25,20 @@ import numpy as np
 
 from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
+
+#: most moving parts the part search looks for, and the largest focal length (pixels): the
+#: ranges the command line (``articulation video``) takes
+MAX_PARTS = 20
+MAX_FOCAL = 1e7
+
+
+def _check_options(focal, max_parts, seed) -> None:
+    """The options of :func:`analyze_video` in the command line's ranges, else an :class:`InputError`."""
+    if focal is not None:
+        check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True)
+    check_range("max_parts", max_parts, 1, MAX_PARTS, integer=True)
+    check_seed(seed, "seed")
 
 __all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
@@ -60,6 +73,7 @@ class VideoArticulation:
 
 def analyze_tracks(tracks: PointTracks, focal: float | None = None, max_parts: int = 3, seed: int = 0) -> VideoArticulation:
     """Stages 2-4 on point tracks (see the module doc)."""
+    _check_options(focal, max_parts, seed)
     from artmotion.articulation.video.joint import classify_part
     from artmotion.articulation.video.segment import camera_motion, moving_tracks, noise_level, rigid_parts
 
@@ -83,6 +97,7 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     from artmotion.articulation.video.tracks import point_tracks
     from artmotion.io.sequence import open_sequence
 
+    _check_options(focal, max_parts, seed)
     seq = open_sequence(source)
     total = len(seq)
     want = set(snapshot_frames(total, snapshots))

@@ -29,7 +29,29 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import lars_path_gram
 from sklearn.metrics import silhouette_score, v_measure_score
 
+from artmotion.errors import InputError
+
 LAMBDA = 0.15
+
+
+def _features(name: str, X, dim: int | None = None) -> np.ndarray:
+    """``X`` as an ``(N, d)`` float array of finite numbers (``d == dim`` when given), else an
+    :class:`InputError` naming ``name``."""
+    try:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError(f"{name} features must be an array of numbers") from None
+    if X.ndim != 2:
+        raise InputError(f"{name} features must be an (examples, dimensions) array, got shape {X.shape}")
+    if dim is not None and X.shape[1] != dim:
+        raise InputError(f"{name} features must have {dim} dimensions (as in training), got {X.shape[1]}")
+    if not np.all(np.isfinite(X)):
+        raise InputError(f"{name} features contain NaN or infinite values")
+    return X
+
+
+def _not_fitted(cls: str) -> InputError:
+    return InputError(f"{cls} is not fitted: call fit() first")
 
 
 class BlockScaler:
@@ -57,9 +79,11 @@ class PairedSparse:
 
     def fit(self, X: np.ndarray, Y: np.ndarray) -> PairedSparse:
         """Learn from visual ``X (N, dx)`` and audio ``Y (N, dy)`` of the same ``N`` examples."""
-        X, Y = np.atleast_2d(X), np.atleast_2d(Y)
-        if len(X) != len(Y) or len(X) < 2:
-            raise ValueError("need at least two paired examples")
+        X, Y = _features("visual", X), _features("audio", Y)
+        if len(X) != len(Y):
+            raise InputError(f"visual and audio features must pair up row by row, got {len(X)} and {len(Y)} rows")
+        if len(X) < 2:
+            raise InputError("need at least two paired examples")
         self.sx_, self.sy_ = BlockScaler().fit(X), BlockScaler().fit(Y)
         Z = np.hstack([self.sx_.transform(X), self.sy_.transform(Y)])
         k = int(min(self.n_atoms, len(X)))
@@ -72,6 +96,7 @@ class PairedSparse:
             dl.fit(Z)
         D = dl.components_
         self.dx_ = X.shape[1]
+        self.dy_ = Y.shape[1]
         self.U_, self.V_ = D[:, : self.dx_].copy(), D[:, self.dx_ :].copy()  # atoms as rows
         self.gram_u_, self.gram_v_ = self.U_ @ self.U_.T, self.V_ @ self.V_.T
         return self
@@ -88,18 +113,28 @@ class PairedSparse:
                 out[i] = coefs[:, -1]
         return out
 
+    def _fitted(self) -> None:
+        if not hasattr(self, "U_"):
+            raise _not_fitted(type(self).__name__)
+
     def codes_from_audio(self, Y: np.ndarray) -> np.ndarray:
-        return self._encode(self.sy_.transform(np.atleast_2d(Y)), self.V_, self.lam, self.gram_v_)
+        self._fitted()
+        Y = _features("audio", Y, self.V_.shape[1])
+        return self._encode(self.sy_.transform(Y), self.V_, self.lam, self.gram_v_)
 
     def codes_from_visual(self, X: np.ndarray) -> np.ndarray:
-        return self._encode(self.sx_.transform(np.atleast_2d(X)), self.U_, self.lam, self.gram_u_)
+        self._fitted()
+        X = _features("visual", X, self.dx_)
+        return self._encode(self.sx_.transform(X), self.U_, self.lam, self.gram_u_)
 
     def audio_to_visual(self, Y: np.ndarray) -> np.ndarray:
         """``phi^-1``: visual features generated from audio features."""
+        self._fitted()
         return self.sx_.inverse(self.codes_from_audio(Y) @ self.U_)
 
     def visual_to_audio(self, X: np.ndarray) -> np.ndarray:
         """``phi``: audio features generated from visual features."""
+        self._fitted()
         return self.sy_.inverse(self.codes_from_visual(X) @ self.V_)
 
 
@@ -153,10 +188,21 @@ class CompositionalSparse:
 
     def fit(self, visual: list[np.ndarray], audio: list[np.ndarray], H: np.ndarray | None = None) -> CompositionalSparse:
         """Learn ``H`` (unless given) and the paired model of every linked pair."""
+        if len(visual) != len(audio) or not len(visual):
+            raise InputError(f"need as many visual concepts as audio segments (at least one), "
+                             f"got {len(visual)} and {len(audio)}")
+        visual = [_features(f"visual concept {i + 1}", X) for i, X in enumerate(visual)]
+        audio = [_features(f"audio segment {j + 1}", Y) for j, Y in enumerate(audio)]
         if H is None:
             H, M = estimate_linking(visual, audio, seed=self.seed)
         else:
             M = None
+            H = np.asarray(H)
+            n = len(visual)
+            if H.shape != (n, n) or not np.all((H == 0) | (H == 1)) or not (
+                    np.all(H.sum(axis=0) == 1) and np.all(H.sum(axis=1) == 1)):
+                raise InputError(f"H must be a permutation matrix of shape ({n}, {n}): 0s and 1s, "
+                                 f"one 1 per row and per column")
         self.H_, self.vmeasure_ = np.asarray(H, int), M
         self.link_ = [int(np.argmax(self.H_[i])) for i in range(len(visual))]  # concept -> segment
         self.models_ = [
@@ -165,12 +211,20 @@ class CompositionalSparse:
         ]
         return self
 
+    def _check_blocks(self, blocks, what: str) -> None:
+        if not hasattr(self, "models_"):
+            raise _not_fitted(type(self).__name__)
+        if len(blocks) != len(self.models_):
+            raise InputError(f"expected {len(self.models_)} {what}, got {len(blocks)}")
+
     def audio_to_visual(self, audio: list[np.ndarray]) -> list[np.ndarray]:
         """Visual concept features generated from the audio segments (Eq. 5.6 then ``H``)."""
+        self._check_blocks(audio, "audio segments")
         return [m.audio_to_visual(audio[j]) for m, j in zip(self.models_, self.link_)]
 
     def visual_to_audio(self, visual: list[np.ndarray]) -> list[np.ndarray]:
         """Audio segment features generated from the visual concepts, in segment order."""
+        self._check_blocks(visual, "visual concepts")
         out: list = [None] * len(self.link_)
         for i, (m, j) in enumerate(zip(self.models_, self.link_)):
             out[j] = m.visual_to_audio(visual[i])

@@ -11,6 +11,7 @@ in one file (a torch pickle of tensors and numbers only, read with ``weights_onl
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import time
@@ -19,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range, need_package
+from artmotion.errors import InputError, check_range, check_seed, need_package
 
-__all__ = ["ToolDetector", "need_torch"]
+__all__ = ["ToolDetector", "check_frame", "finite_rows", "need_torch"]
 
 _FORMAT = "artmotion-tool-detector-1"
 _MAX_SIDE = 8192    # the largest frame side a model is trained on (8K video)
@@ -33,6 +34,50 @@ def scale_to(trained: tuple[int, int], frame: tuple[int, int], tolerance: float 
     kept; 1 within ``tolerance`` (a few pixels of another crop of the same video are no other scale)."""
     f = math.sqrt(trained[0] * trained[1] / (frame[0] * frame[1]))
     return 1.0 if abs(f - 1.0) <= tolerance else f
+
+
+def check_frame(frame, what: str = "a frame") -> None:
+    """An :class:`InputError` unless ``frame`` (``what``, for the message) is a BGR uint8 image
+    ``(H, W, 3)`` with pixels, as :func:`artmotion.tracking.detectors._check_frame` requires of the
+    people detectors' frames."""
+    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+        got = (f"a {frame.dtype} array of shape {frame.shape}" if isinstance(frame, np.ndarray)
+               else f"a {type(frame).__name__}")
+        raise InputError(f"{what} must be a BGR uint8 image (H, W, 3), got {got}")
+    if frame.shape[0] == 0 or frame.shape[1] == 0:
+        raise InputError(f"{what} is empty ({frame.shape[1]}x{frame.shape[0]} pixels)")
+
+
+def finite_rows(values, width: int, what: str, columns: str) -> np.ndarray:
+    """``values`` as a ``(k, width)`` array of finite numbers (a single row may be flat); else an
+    :class:`InputError` naming ``what`` and its ``columns``."""
+    try:
+        A = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} are not a (k, {width}) array of numbers ({columns})") from None
+    if A.size == 0:
+        return A.reshape(0, width)
+    if A.ndim not in (1, 2) or A.shape[-1] != width:
+        raise InputError(f"{what} must be a (k, {width}) array ({columns}), got shape {A.shape}")
+    if not np.isfinite(A).all():
+        raise InputError(f"{what} hold NaN or infinite values")
+    return A.reshape(-1, width)
+
+
+def _check_heads(heads, i: int, shape: tuple[int, ...]) -> np.ndarray:
+    """The annotated heads of training frame ``i`` (of ``shape``) as ``(k, 4)``: x, y, size, angle,
+    finite, inside the frame (as ``artmotion tool train`` requires), of positive size."""
+    H = finite_rows(heads, 4, f"the heads of frame {i}", "x, y, size, angle")
+    if not len(H):
+        return H
+    h, w = shape[:2]
+    out = ~((H[:, 0] >= 0) & (H[:, 0] < w) & (H[:, 1] >= 0) & (H[:, 1] < h))
+    if out.any():
+        x, y = H[out][0, :2]
+        raise InputError(f"frame {i}: a head at ({x:g}, {y:g}) lies outside the {w}x{h} frame")
+    if (H[:, 2] <= 0).any():
+        raise InputError(f"frame {i}: a head's size must be positive, got {H[H[:, 2] <= 0][0, 2]:g}")
+    return H
 
 
 def need_torch() -> None:
@@ -64,19 +109,24 @@ class ToolDetector:
             progress: Callable[[int, int, float], None] | None = None) -> ToolDetector:
         """Learn from ``frames`` (BGR uint8, one size) and their heads (``(k, 4)`` each, k may be 0).
         ``progress(epoch, epochs, loss)`` is called after each epoch."""
-        import torch
-
+        from artmotion._torch import torch
         from artmotion.tracking.instruments import net
 
         check_range("epochs", self.epochs, 1, 10_000, integer=True)
         check_range("batch", self.batch, 1, 1024, integer=True)
         check_range("threshold", self.threshold, 0.0, 1.0, lo_open=True, hi_open=True)   # as load() requires
         check_range("max_heads", self.max_heads, 1, _MAX_HEADS, integer=True)
+        check_range("width", self.width, 1, 1024, integer=True)
+        check_range("lr", self.lr, 0.0, 1.0, lo_open=True)
+        check_seed(self.seed, "seed")
         if len(frames) == 0 or len(frames) != len(heads):
             raise InputError(f"need frames and their heads, got {len(frames)} frames and {len(heads)} head lists")
+        for i, f in enumerate(frames):
+            check_frame(f, f"training frame {i}")
         shape = frames[0].shape
-        if len(shape) != 3 or shape[2] != 3 or any(f.shape != shape for f in frames):
+        if any(f.shape != shape for f in frames):
             raise InputError("training frames must be BGR images of one size")
+        heads = [_check_heads(H, i, shape) for i, H in enumerate(heads)]
         h, w = shape[:2]
         if h < 4 * net.STRIDE or w < 4 * net.STRIDE:
             raise InputError(f"frames of {w}x{h} are too small")
@@ -96,7 +146,7 @@ class ToolDetector:
             total = 0.0
             for s in range(0, len(order), self.batch):
                 idx = order[s:s + self.batch]
-                imgs, hs = zip(*(_augment(frames[i], np.asarray(heads[i], float).reshape(-1, 4), rng) for i in idx))
+                imgs, hs = zip(*(_augment(frames[i], heads[i], rng) for i in idx))
                 x = net.to_tensor(list(imgs))
                 y = net.targets(list(hs), grid)
                 opt.zero_grad()
@@ -130,14 +180,19 @@ class ToolDetector:
         of the same operation at 768x576 for a model trained at 384x288); positions and sizes are
         given back in the frame's own pixels."""
         import cv2
-        import torch
 
+        from artmotion._torch import torch
         from artmotion.tracking.instruments import net
 
         self._check_fitted()
-        if not frames:
+        if len(frames) == 0:
             return []
+        for im in frames:
+            check_frame(im)
         h, w = frames[0].shape[:2]
+        other = next((im.shape for im in frames if im.shape[:2] != (h, w)), None)
+        if other is not None:
+            raise InputError(f"the frames of one batch must be of one size, got {w}x{h} and {other[1]}x{other[0]}")
         f = scale_to(self.frame_shape_, (h, w))
         if f != 1.0:
             size = (max(2 * net.STRIDE, round(w * f)), max(2 * net.STRIDE, round(h * f)))
@@ -156,22 +211,22 @@ class ToolDetector:
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model to ``path`` (atomically)."""
-        import torch
-
+        from artmotion._torch import torch
         from artmotion.io.atomic import atomic_path
 
         self._check_fitted()
         state = {"format": _FORMAT, "width": self.width, "threshold": self.threshold, "max_heads": self.max_heads,
                  "frame_shape": list(self.frame_shape_), "weights": self.model_.state_dict()}
+        buf = io.BytesIO()      # torch.save on a full disk raises a RuntimeError of its own; a file's write an OSError
+        torch.save(state, buf)
         with atomic_path(path) as tmp:
-            torch.save(state, tmp)
+            tmp.write_bytes(buf.getbuffer())
         return Path(path)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ToolDetector:
         """A detector saved by :meth:`save`; an :class:`InputError` naming the file otherwise."""
-        import torch
-
+        from artmotion._torch import torch
         from artmotion.io.files import existing_file
 
         p = existing_file(path)

@@ -31,10 +31,11 @@ from typing import Any
 import cv2
 import numpy as np
 
+from artmotion.errors import InputError
 from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
-from artmotion.tracking.instruments.detector import scale_to
+from artmotion.tracking.instruments.detector import check_frame, finite_rows, scale_to
 from artmotion.tracking.pote import fuse
 
 __all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]
@@ -70,6 +71,11 @@ def _moved(h: _Head, d: np.ndarray, px: float = 1.0) -> Gaussian:
     med = np.median(d, axis=0)
     spread = float(np.median(np.linalg.norm(d - med, axis=1))) + px
     return Gaussian(h.x[:2] + med, np.eye(2) * (spread**2 + 4.0 * px * px))
+
+
+def _check_detections(detections, what: str) -> np.ndarray:
+    """``detections`` as a ``(k, 5)`` array of finite x, y, size, angle, score; else an :class:`InputError`."""
+    return finite_rows(detections, 5, what, "x, y, size, angle, score")
 
 
 class ToolTracker:
@@ -184,11 +190,16 @@ class ToolTracker:
     def update(self, frame: np.ndarray, detections: np.ndarray | None = None) -> np.ndarray:
         """Track into BGR ``frame``; ``detections`` ``(k, 5)`` (x, y, size, angle, score) or None to run
         the detector. Returns the reported heads ``(k, 6)``: track, x, y, size, angle, score."""
+        check_frame(frame)
+        if self._prev is not None and frame.shape[:2] != self._prev.shape:
+            (h, w), (H, W) = self._prev.shape, frame.shape[:2]
+            raise InputError(f"a frame of {W}x{H} after frames of {w}x{h}: a tracker follows one video, of one frame size")
+        given = None if detections is None else _check_detections(detections, "detections")
         grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
         if self._prev is None:  # the pixel settings are in the training frames' pixels: this video's scale
             trained = getattr(self.detector, "frame_shape_", None)
             self._px = 1.0 if trained is None else 1.0 / scale_to(trained, grey.shape[:2])
-        D = self.detector.detect(frame) if detections is None else np.asarray(detections, float).reshape(-1, 5)
+        D = _check_detections(self.detector.detect(frame), "the detector's detections") if given is None else given
         A = self._camera(grey)
         klt = self._klt(grey)
         dense = self._flow(grey)

@@ -78,10 +78,10 @@ def test_pairs_left_out_could_never_be_together(monkeypatch):
     rows += box_rows(41, np.arange(1, 100), np.linspace(100, 400, 99), np.full(99, 200))
     rows += box_rows(42, np.arange(1, 100), np.linspace(140, 440, 99), np.full(99, 205))
     rows = np.array(rows, float)
-    fast = sentences(describe(rows, image_size=(W, H)))
+    fast = sentences(describe(rows))
     ids = lambda tracks, near: ((a.tid, b.tid) for k, a in enumerate(tracks) for b in tracks[k + 1:])  # noqa: E731
     monkeypatch.setattr(mod, "_near_pairs", ids)
-    every = sentences(describe(rows, image_size=(W, H)))
+    every = sentences(describe(rows))
     assert fast == every
     assert any(" and " in s for s in every)           # pairs were said something of
 
@@ -280,7 +280,8 @@ def test_describe_api_checks_what_the_command_line_checks():
                             (np.vstack([scene(), scene()[:1]]), {}, "more than once"),
                             (scene(), {"fps": -25.0}, "fps"),
                             (scene(), {"fps": float("nan")}, "fps"),
-                            (scene(), {"image_size": (0, 480)}, "image_size"),
+                            (scene(), {"image_size": (0, 480)}, "image size must be"),
+                            (scene(), {"image_size": (64, 48)}, r"centre \(\d+, \d+\) lies far outside the 64x48"),
                             (scene(), {"classes": "person"}, "classes")):
         with pytest.raises(InputError, match=needle):
             describe(bad, **kw)

@@ -48,7 +48,7 @@ def describe_cmd(
     from artmotion.io.media import MAX_FPS, MIN_FPS
     from artmotion.io.mot import MAX_ID, check_ids
     from artmotion.io.table import MAX_ANGLE
-    from artmotion.language.describe import describe, parse_classes, read_pose
+    from artmotion.language.describe import check_image_size, describe, parse_classes, read_pose
 
     if fps is not None:
         check_range("--fps", fps, MIN_FPS, MAX_FPS)
@@ -81,10 +81,13 @@ def describe_cmd(
         if pose_seq is not None and (pose_seq[0].min() < first or pose_seq[0].max() > last):
             raise InputError(f"pose frames {pose_seq[0].min()}-{pose_seq[0].max()} are not within the results' "
                              f"frames {first}-{last}", path=pose)
+    image_size = _size(size)
+    if image_size is not None:
+        check_image_size(rows, image_size, path=results)
     triplets = describe(
         rows, evs, pose=pose_seq, classes=parse_classes(cls), pose_subject=pose_subject,
         pose_track=pose_track, open_above=open_above, close_below=close_below,
-        image_size=_size(size), fps=fps,
+        image_size=image_size, fps=fps,
     )
     if as_json:
         typer.echo(json.dumps([t.to_dict() for t in triplets], indent=1))

@@ -217,6 +217,23 @@ def border_side(box: np.ndarray, size: tuple[float, float], p: DescribeParams) -
     return side if d[side] <= margin else "inside"
 
 
+def check_image_size(rows: np.ndarray, size, path: str | os.PathLike | None = None) -> None:
+    """An :class:`InputError` (naming ``path``, the tracks' file) unless ``size`` is an image
+    ``(width, height)`` the boxes of ``rows`` fit: a box may stand partly out of the image, its
+    centre hardly; a quarter of the image beyond a border means the size is wrong (entries and
+    exits would be said at the wrong sides)."""
+    if not (len(size) == 2 and all(0 < v <= MAX_COORD for v in size)):
+        raise InputError(f"image size must be (width, height) in pixels, got {size!r}")
+    if not len(rows):
+        return
+    (w, h), c = size, box_center(rows[:, 2:6])
+    off = (c[:, 0] < -w / 4) | (c[:, 0] > 1.25 * w) | (c[:, 1] < -h / 4) | (c[:, 1] > 1.25 * h)
+    if off.any():
+        x, y = c[off][0]
+        raise InputError(f"a box's centre ({x:g}, {y:g}) lies far outside the {w:g}x{h:g} image: is the image "
+                         f"size right?", path=path)
+
+
 def infer_image_size(rows: np.ndarray) -> tuple[float, float]:
     """Image width and height guessed from the extent of the boxes."""
     return float(np.max(rows[:, 2] + rows[:, 4])), float(np.max(rows[:, 3] + rows[:, 5]))
@@ -491,8 +508,8 @@ def describe(
             raise InputError(f"event {k + 1}: {problem}")
     if fps is not None:
         check_range("fps", fps, MIN_FPS, MAX_FPS)
-    if image_size is not None and not (len(image_size) == 2 and all(0 < v <= MAX_COORD for v in image_size)):
-        raise InputError(f"image_size must be (width, height) in pixels, got {image_size!r}")
+    if image_size is not None:
+        check_image_size(tracks, image_size)
     if not (isinstance(classes, tuple) and len(classes) == 2 and isinstance(classes[1], dict)):
         raise InputError(f"classes must be (default class, {{track id: class}}), got {classes!r}")
     default_cls, per_track = classes

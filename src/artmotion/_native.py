@@ -47,11 +47,23 @@ def signals_held(enabled: bool = True) -> Iterator[None]:
     try:
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        _restore(list(previous.items()))
         if pending:
             handler = previous[pending[0]]
             if callable(handler):
                 handler(pending[0], None)
             elif handler != signal.SIG_IGN:
                 signal.raise_signal(pending[0])       # the default action
+
+
+def _restore(handlers: list) -> None:
+    """Put back each ``(signal, handler)``: every one, even when a handler put back first runs at
+    once (a signal arriving meanwhile) and raises — each restore is in the ``finally`` of the one
+    before."""
+    import signal
+
+    if handlers:
+        try:
+            signal.signal(*handlers[0])
+        finally:
+            _restore(handlers[1:])

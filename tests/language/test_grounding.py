@@ -192,17 +192,23 @@ def test_dataset_without_espeak(tmp_path, run_cli, monkeypatch):
 
 @needs_espeak
 def test_speech_on_a_full_disk_is_an_error(tmp_path, monkeypatch):
-    """espeak-ng exits 0 on a full disk with the WAV cut where the room ended (and a header that
-    matches): a folder left with no free block is a full disk, not speech."""
-    import os
-    from types import SimpleNamespace
+    """espeak-ng writing a WAV itself exits 0 on a full disk, the speech cut where the room ended
+    and a header made to match: the WAV comes through a pipe and is written here, where a full disk
+    is an error."""
+    import errno
+    from pathlib import Path
 
     from artmotion.errors import InputError
     from artmotion.language.grounding.dataset import speak
 
-    real = os.statvfs
-    monkeypatch.setattr(os, "statvfs", lambda p: SimpleNamespace(**{k: getattr(real(p), k) for k in dir(real(p))
-                                                                     if k.startswith("f_")} | {"f_bavail": 0}))
-    with pytest.raises(InputError, match="s.wav: cannot write: No space left on device"):
-        speak("red square", tmp_path / "s.wav", 150)
+    def full(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device", str(self))
+
+    with monkeypatch.context() as m:
+        m.setattr(Path, "write_bytes", full)
+        with pytest.raises(InputError, match="s.wav: cannot write: No space left on device"):
+            speak("the red square is above the blue circle", tmp_path / "s.wav", 150)
     assert list(tmp_path.iterdir()) == []
+    speak("red square", tmp_path / "ok.wav", 150)
+    head = (tmp_path / "ok.wav").read_bytes()
+    assert int.from_bytes(head[4:8], "little") + 8 == len(head)      # the sizes filled in

@@ -98,7 +98,7 @@ def test_a_second_signal_does_not_cut_the_clean_up_short():
             signal.signal(s, cli._terminate)
         with pytest.raises(Interrupted):
             os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(1)
+            time.sleep(0.1)                          # (the handler runs at once)
         os.kill(os.getpid(), signal.SIGINT)          # during the clean-up: nothing happens
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(0.05)

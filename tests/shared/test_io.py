@@ -318,3 +318,20 @@ def test_commands_refuse_an_output_folder_before_the_work(tmp_path, run_cli):
         code, _, err = run_cli(*args)
         assert code == 2 and f"{mine / name}: exists and was not written by this command" in err, err
     assert sorted(p.name for p in mine.iterdir()) == ["cv_hog.csv", "retrieval.png"]
+
+
+def test_an_inputs_error_inside_an_output_block_names_the_input(tmp_path):
+    """``track`` writes its outputs under temporary names around the whole work: an error reading
+    an input was reported as "cannot write" on an output, and the output's new folders were left."""
+    from artmotion.io.atomic import atomic_dir, atomic_path
+
+    for block in (lambda: atomic_path(tmp_path / "new" / "deep" / "o.txt"), lambda: atomic_dir(tmp_path / "new" / "run")):
+        with pytest.raises(PermissionError) as info:
+            with block():
+                raise PermissionError(13, "Permission denied", "/data/seq/img1/000005.jpg")
+        assert info.value.filename == "/data/seq/img1/000005.jpg"
+        assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError, match=r"o.txt: cannot write: No space left on device"):
+        with atomic_path(tmp_path / "new" / "o.txt") as tmp:
+            raise OSError(28, "No space left on device", str(tmp))
+    assert list(tmp_path.iterdir()) == []

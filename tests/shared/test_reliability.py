@@ -790,6 +790,7 @@ def test_8_sigterm_while_batch_workers_start_is_one_line(tmp_path):
     assert err.startswith("artmotion: terminated by signal 15") and err.count("\n") == 1, err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_8_an_interrupted_batch_leaves_no_partial_runs_and_counts_what_finished(tmp_path, sig):
     """Interrupted while its workers write runs: a run folder half-written by a worker was left
@@ -812,6 +813,15 @@ def test_8_an_interrupted_batch_leaves_no_partial_runs_and_counts_what_finished(
     assert f"{finished} of 4 items finished" in err, err
 
 
+def _loaded(pid: int, name: str) -> bool:
+    """Whether process ``pid`` has mapped a file whose path holds ``name`` (a library it imports)."""
+    try:
+        return name in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_8_ctrl_c_while_batch_workers_start_is_one_line(tmp_path):
     """Ctrl-C (SIGINT to the whole process group) while a Dask worker process is starting: each
@@ -823,10 +833,9 @@ def test_8_ctrl_c_while_batch_workers_start_is_one_line(tmp_path):
     proc = _start_batch(archive, tmp_path / "runs", 2, start_new_session=True)
     deadline = time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < deadline:
-        if any("multiprocessing.spawn" in cmd for _, cmd in _children(proc.pid)):
-            break
+        if any("multiprocessing.spawn" in cmd and _loaded(pid, "yaml") for pid, cmd in _children(proc.pid)):
+            break                              # a worker is importing Dask (its configuration)
         time.sleep(0.002)
-    time.sleep(0.2)                            # the worker is importing Dask
     assert proc.poll() is None, "the batch ended before its workers started"
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=60)

@@ -187,7 +187,7 @@ def test_detector_refuses_what_is_not_a_bgr_uint8_frame():
                 frame.tolist()):
         with pytest.raises(InputError, match=r"must be a BGR uint8 image \(H, W, 3\), got"):
             det.detect(bad)
-    with pytest.raises(InputError, match="empty"):
+    with pytest.raises(InputError, match="0x0 pixels is too small"):
         det.detect(np.zeros((0, 0, 3), np.uint8))
     with pytest.raises(InputError, match="one size, got 128x96 and 64x48"):
         det.detect_batch([frame, frame[:48, :64]])

@@ -180,6 +180,23 @@ class BatchReport:
         return self.by_status("failed")
 
 
+def _finished_by(out_dir: str, batch: str | None, item: str | None = None) -> ItemOutcome | None:
+    """The outcome of the run in ``out_dir`` when batch ``batch`` finished it (its manifest says
+    so: an earlier batch's run, which ``--force`` runs again, is not), else ``None``."""
+    from artmotion.app.pipeline import load_run
+
+    if batch is None or not is_finished(out_dir):
+        return None
+    try:
+        run = load_run(out_dir)
+    except ArtmotionError:
+        return None
+    if run.get("batch") != batch:
+        return None
+    return ItemOutcome(item or str(run.get("source")), "done", out_dir, run.get("seconds") or 0.0,
+                       tracks=len(run["track_summary"]), sentences=len(run["sentences"]))
+
+
 def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | None = None) -> ItemOutcome:
     """Run the pipeline on one item; never raises (the failure is the outcome).
 
@@ -187,7 +204,7 @@ def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | N
     its result was collected; if an earlier attempt of the same batch finished it, its run is
     reported instead of written a second time."""
     from artmotion._native import quiet_native_logs
-    from artmotion.app.pipeline import load_run, run_pipeline
+    from artmotion.app.pipeline import run_pipeline
 
     t0 = time.perf_counter()
     quiet_native_logs()              # a damaged item is one line in the report, not FFmpeg's chatter
@@ -196,14 +213,9 @@ def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | N
 
         cv2.setNumThreads(1)
     internal = False
-    if batch is not None and is_finished(out_dir):
-        try:
-            run = load_run(out_dir)
-        except ArtmotionError:
-            run = None
-        if run is not None and run.get("batch") == batch:
-            return ItemOutcome(item, "done", out_dir, run.get("seconds") or 0.0, tracks=len(run["track_summary"]),
-                               sentences=len(run["sentences"]))
+    done = _finished_by(out_dir, batch, item)
+    if done is not None:
+        return done
     try:
         res = run_pipeline(item, out_dir, progress=False, batch=batch)
         return ItemOutcome(item, "done", out_dir, time.perf_counter() - t0,
@@ -260,7 +272,6 @@ def run_batch(
     items = find_items(root)
     outs = item_dirs(items, out)
     check_apart(out, items)          # one error now, not one per item later (nor runs in an item's folder)
-    check_can_create_in(out)         # (a read-only folder: the cluster started, then every item failed)
     for item_path, item_out in zip(items, outs):
         check_apart(item_out, (item_path,))
     report = BatchReport()
@@ -275,6 +286,7 @@ def run_batch(
         if on_progress:
             on_progress(o, len(report.outcomes), total)
     if todo:
+        check_can_create_in(out)     # (a read-only folder: the cluster started, then every item failed)
         cluster = None
         interrupted: Interrupted | None = None
         if scheduler:
@@ -317,8 +329,10 @@ def run_batch(
             # workers may still be writing theirs)
             reported = {o.item for o in report.outcomes}
             for it, od in todo:
-                if it not in reported and cluster is not None and is_finished(od):
-                    report.outcomes.append(ItemOutcome(it, "done", od, message="finished as the batch stopped"))
+                done = _finished_by(od, batch, it) if it not in reported and cluster is not None else None
+                if done is not None:
+                    done.message = "finished as the batch stopped"
+                    report.outcomes.append(done)
             if cluster is not None:
                 _remove_stale_temporaries([od for _, od in todo])
             finished = {o.item for o in report.outcomes}

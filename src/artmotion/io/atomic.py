@@ -41,16 +41,34 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def _prepare(path: str | os.PathLike) -> Path:
+def _prepare(path: str | os.PathLike, made: list[Path]) -> Path:
+    """``path`` as a :class:`Path` whose folder exists; the folders created for it are appended to
+    ``made`` (outermost first), for :func:`_discard` to remove if the write fails."""
     path = Path(path)
     error = _not_regular(path)
     if error is not None:
         raise error
+    missing = []
+    folder = path.parent
+    while not os.path.lexists(folder) and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        for folder in reversed(missing):
+            made.append(folder)             # (before it exists: see _fresh)
+            os.mkdir(folder)
     except OSError as exc:
         raise InputError(f"cannot create output folder: {exc.strerror}", path=path.parent) from exc
     return path
+
+
+def _ours(exc: OSError, made: list[Path]) -> bool:
+    """Whether ``exc`` concerns the output being written (a file in one of the temporary names
+    ``made``, or none named) rather than another file (an input the work reads)."""
+    if not exc.filename:
+        return True
+    name = os.fspath(exc.filename)
+    return any(name == os.fspath(p) or name.startswith(os.fspath(p) + os.sep) for p in made)
 
 
 def _within(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
@@ -121,14 +139,18 @@ def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path
     raise FileExistsError(f"no free temporary name in {parent}")
 
 
-def _discard(made: list[Path]) -> None:
-    """Remove what :func:`_fresh` created (a file, or a folder and all in it), if it is there."""
+def _discard(made: list[Path], folders: list[Path] | None = None) -> None:
+    """Remove what :func:`_fresh` created (a file, or a folder and all in it), if it is there, then
+    the ``folders`` :func:`_prepare` created, innermost first, if they are empty."""
     for name in made:
         if name.is_dir() and not name.is_symlink():
             shutil.rmtree(name, ignore_errors=True)
         else:
             with contextlib.suppress(OSError):
                 name.unlink()
+    for folder in reversed(folders or []):
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 @contextlib.contextmanager
@@ -140,7 +162,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     A failure or an interruption at any point, the temporary name's creation included, leaves
     nothing behind.
     """
-    path = _prepare(path)
+    folders: list[Path] = []
+    path = _prepare(path, folders)
     suffix = path.suffix if suffix is None else suffix
     made: list[Path] = []
     try:
@@ -151,17 +174,19 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         yield tmp_path
         os.replace(tmp_path, path)
     except InputError as exc:
-        _discard(made)
+        _discard(made, folders)
         renamed = _renamed(exc, made[0], path) if made else exc
         if renamed is exc:
             raise
         raise renamed from None
     except OSError as exc:
-        _discard(made)
+        _discard(made, folders)
+        if not _ours(exc, made):
+            raise                                 # an input's error, not the output's: as it is
         # a full disk, a lost permission: name the destination, never the temporary name
         raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from exc
     except BaseException:
-        _discard(made)
+        _discard(made, folders)
         raise
 
 
@@ -243,7 +268,8 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     create it): ``outputs``, the names the block will write, are checked before it runs, and
     every name it wrote is checked again before anything is moved (:class:`InputError`)."""
     path, swap, foreign = _plan_dir(path, replace, outputs)
-    _prepare(path)
+    folders: list[Path] = []         # the folders created to hold it
+    _prepare(path, folders)
     made: list[Path] = []            # the temporary folder
     kept: list[Path] = []            # where the earlier outputs wait while a swap renames
     swapped = False                  # the earlier outputs are out of ``path``
@@ -267,17 +293,19 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
         os.replace(tmp, path)               # onto an empty folder too (POSIX rename)
         swapped = False                     # the new outputs are in: the earlier ones go
     except InputError as exc:
-        _discard(made)
+        _discard(made, folders)
         renamed = _renamed(exc, made[0], path) if made else exc
         if renamed is exc:
             raise
         raise renamed from None
     except OSError as exc:
-        _discard(made)
+        _discard(made, folders)
+        if not _ours(exc, made) and not _ours(exc, [path]):
+            raise                                 # an input's error, not the output's: as it is
         where = Path(str(exc.filename).replace(str(made[0]), str(path), 1)) if exc.filename and made else path
         raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
     except BaseException:
-        _discard(made)
+        _discard(made, folders)
         raise
     finally:
         if swapped and not os.path.lexists(path):

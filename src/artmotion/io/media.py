@@ -147,6 +147,19 @@ def image_problem(buf: np.ndarray) -> str | None:
     return _image_structure(buf)[0]
 
 
+def check_frame(frame, what: str = "a frame", min_side: int = 1) -> None:
+    """An :class:`InputError` unless ``frame`` (``what``, for the message) is a BGR uint8 image
+    ``(H, W, 3)`` (OpenCV's convention: what the readers return and every stage takes) whose sides
+    have at least ``min_side`` pixels."""
+    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+        got = (f"a {frame.dtype} array of shape {frame.shape}" if isinstance(frame, np.ndarray)
+               else f"a {type(frame).__name__}")
+        raise InputError(f"{what} must be a BGR uint8 image (H, W, 3), got {got}")
+    if min(frame.shape[:2]) < min_side:
+        raise InputError(f"{what} of {frame.shape[1]}x{frame.shape[0]} pixels is too small "
+                         f"(at least {min_side} a side)")
+
+
 def check_image_bytes(buf: np.ndarray, path) -> None:
     """Raise an :class:`InputError` naming ``path`` when :func:`image_problem` finds one."""
     problem = image_problem(buf)

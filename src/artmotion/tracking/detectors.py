@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError, check_range
+from artmotion.io.media import check_frame
 from artmotion.io.mot import MAX_BOXES_PER_FRAME, MAX_COORD
 
 __all__ = ["DETECTORS", "Detector", "HOGDetector", "SSDLiteDetector", "check_detector", "make_detector", "ssdlite_weights"]
@@ -76,11 +77,7 @@ class Detector:
 
 
 def _check_frame(frame: np.ndarray) -> None:
-    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
-        raise InputError(f"a detector takes a BGR uint8 image (H, W, 3), got "
-                         f"{getattr(frame, 'dtype', type(frame).__name__)} {getattr(frame, 'shape', '')}")
-    if min(frame.shape[:2]) < 8:
-        raise InputError(f"image of {frame.shape[1]}x{frame.shape[0]} pixels is too small to detect in")
+    check_frame(frame, "a detector's frame", min_side=8)
 
 
 def _nms(boxes: np.ndarray, scores: np.ndarray, min_score: float, iou: float) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,6 @@ import numpy as np
 
 from artmotion.errors import InputError, check_seed
 from artmotion.io import atomic_dir, atomic_path, atomic_write
-from artmotion.io.files import check_riff_size, read_head
 from artmotion.io.media import write_image
 from artmotion.io.table import cell_number, read_csv
 
@@ -141,28 +140,27 @@ def espeak_path() -> str:
 
 
 def speak(text: str, path: str | os.PathLike, speed: int, exe: str | None = None) -> None:
-    """Write ``text`` spoken at ``speed`` words per minute to a WAV file, atomically."""
+    """Write ``text`` spoken at ``speed`` words per minute to a WAV file, atomically.
+
+    espeak-ng writes the WAV to its standard output and this process writes the file: espeak-ng
+    writing a file itself says nothing of a full disk (it exits 0 with the speech cut where the
+    room ended and a header made to match). On a pipe it cannot go back to fill in the header's
+    sizes, so they are set here."""
     exe = exe or espeak_path()
+    try:
+        proc = subprocess.run([exe, "-v", "en-us", "-s", str(int(speed)), "--stdout", text],
+                              capture_output=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise InputError(f"espeak-ng failed: {exc}", path=path) from None
+    wav = bytearray(proc.stdout)
+    data = wav.find(b"data", 12, 200)
+    if proc.returncode != 0 or wav[:4] != b"RIFF" or wav[8:12] != b"WAVE" or data < 0 or len(wav) < 100:
+        msg = proc.stderr.decode("utf-8", "replace").strip().splitlines()
+        raise InputError(f"espeak-ng failed: {msg[0] if msg else 'no audio written'}", path=path)
+    wav[4:8] = (len(wav) - 8).to_bytes(4, "little")
+    wav[data + 4:data + 8] = (len(wav) - data - 8).to_bytes(4, "little")
     with atomic_path(path, suffix=".wav") as tmp:
-        try:
-            proc = subprocess.run(
-                [exe, "-v", "en-us", "-s", str(int(speed)), "-w", str(tmp), text],
-                capture_output=True, text=True, timeout=60,
-            )
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise InputError(f"espeak-ng failed: {exc}", path=path) from None
-        # espeak-ng says nothing of a full disk: it exits 0, the WAV cut short where the room ended
-        # and its header made to match; so a disk with no room left after it is a full disk
-        if os.statvfs(tmp.parent).f_bavail == 0:
-            raise InputError("cannot write: No space left on device (the speech would be cut short)", path=path)
-        try:
-            check_riff_size(tmp, read_head(tmp, 12))
-            short = os.path.getsize(tmp) < 100
-        except InputError:
-            short = True
-        if proc.returncode != 0 or short:
-            msg = (proc.stderr or "").strip().splitlines()
-            raise InputError(f"espeak-ng failed: {msg[0] if msg else 'no audio written'}", path=path)
+        tmp.write_bytes(wav)
 
 
 #: what a dataset folder holds

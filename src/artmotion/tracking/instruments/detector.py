@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError, check_range, check_seed, need_package
+from artmotion.io.media import check_frame
 
-__all__ = ["ToolDetector", "check_frame", "finite_rows", "need_torch"]
+__all__ = ["ToolDetector", "finite_rows", "need_torch"]
 
 _FORMAT = "artmotion-tool-detector-1"
 _MAX_SIDE = 8192    # the largest frame side a model is trained on (8K video)
@@ -34,18 +35,6 @@ def scale_to(trained: tuple[int, int], frame: tuple[int, int], tolerance: float 
     kept; 1 within ``tolerance`` (a few pixels of another crop of the same video are no other scale)."""
     f = math.sqrt(trained[0] * trained[1] / (frame[0] * frame[1]))
     return 1.0 if abs(f - 1.0) <= tolerance else f
-
-
-def check_frame(frame, what: str = "a frame") -> None:
-    """An :class:`InputError` unless ``frame`` (``what``, for the message) is a BGR uint8 image
-    ``(H, W, 3)`` with pixels, as :func:`artmotion.tracking.detectors._check_frame` requires of the
-    people detectors' frames."""
-    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
-        got = (f"a {frame.dtype} array of shape {frame.shape}" if isinstance(frame, np.ndarray)
-               else f"a {type(frame).__name__}")
-        raise InputError(f"{what} must be a BGR uint8 image (H, W, 3), got {got}")
-    if frame.shape[0] == 0 or frame.shape[1] == 0:
-        raise InputError(f"{what} is empty ({frame.shape[1]}x{frame.shape[0]} pixels)")
 
 
 def finite_rows(values, width: int, what: str, columns: str) -> np.ndarray:

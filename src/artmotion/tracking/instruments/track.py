@@ -32,10 +32,11 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
+from artmotion.io.media import check_frame
 from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
-from artmotion.tracking.instruments.detector import check_frame, finite_rows, scale_to
+from artmotion.tracking.instruments.detector import finite_rows, scale_to
 from artmotion.tracking.pote import fuse
 
 __all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]

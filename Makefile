@@ -41,7 +41,7 @@ install: system-deps $(VENV)/.stamp-install
 
 # The main job on the shipped sample: track, describe, score, report.
 demo: install
-	$(VENV)/bin/artmotion run $(SAMPLE) --out $(DEMO_OUT) --index $(DEMO_OUT)/index.sqlite
+	$(VENV)/bin/artmotion run $(SAMPLE) --out $(DEMO_OUT) --index $(DEMO_OUT)-index.sqlite
 	@echo "open $(DEMO_OUT)/report.html in a browser; annotated video: $(DEMO_OUT)/annotated.mp4"
 
 test: install

@@ -142,3 +142,12 @@ def test_search_limit_must_be_a_whole_number_of_at_least_one(index):
             index.search("person exits left", limit=bad)
     with pytest.raises(InputError, match="text"):
         index.search(None)
+
+
+def test_run_refuses_an_index_inside_its_run_folder(tmp_path, run_cli, sample_seq):
+    """``make demo`` put its index in the run folder: the next run into that folder was refused (a
+    folder holding more than a run is not replaced). The index belongs next to the folder."""
+    code, _, err = run_cli("run", sample_seq, "--out", tmp_path / "run", "--index", tmp_path / "run" / "i.sqlite")
+    assert code == 2 and err.strip().endswith("i.sqlite: is inside the run folder --out: keep the index outside it "
+                                              "(next to it)"), err
+    assert list(tmp_path.iterdir()) == []

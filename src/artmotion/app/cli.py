@@ -91,6 +91,9 @@ def run_cmd(
     from artmotion.app.pipeline import run_pipeline
 
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
+    if db is not None and out is not None and Path(os.path.realpath(out)) in Path(os.path.realpath(db)).parents:
+        # the next run into --out replaces the folder whole, or refuses a folder holding other files
+        raise InputError("is inside the run folder --out: keep the index outside it (next to it)", path=db)
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model)

@@ -154,6 +154,32 @@ def _discard(made: list[Path], folders: list[Path] | None = None) -> None:
 
 
 @contextlib.contextmanager
+def _undone_on_failure(path: Path, made: list[Path], folders: list[Path]) -> Iterator[None]:
+    """The block that writes ``path`` through the temporary names ``made`` (:func:`_fresh`), in the
+    ``folders`` :func:`_prepare` created: if it fails or is interrupted, they are removed and an
+    error is named after ``path``, never a temporary name. An OSError of the output (a full disk,
+    a lost permission) becomes an :class:`InputError` ("cannot write"); one of another file (an
+    input the block reads) passes as it is."""
+    try:
+        yield
+    except InputError as exc:
+        _discard(made, folders)
+        renamed = _renamed(exc, made[0], path) if made else exc
+        if renamed is exc:
+            raise
+        raise renamed from None
+    except OSError as exc:
+        _discard(made, folders)
+        if not _ours(exc, [*made, path]):
+            raise
+        where = Path(str(exc.filename).replace(str(made[0]), str(path), 1)) if exc.filename and made else path
+        raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
+    except BaseException:
+        _discard(made, folders)
+        raise
+
+
+@contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` if the block succeeds.
 
@@ -166,28 +192,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     path = _prepare(path, folders)
     suffix = path.suffix if suffix is None else suffix
     made: list[Path] = []
-    try:
-        try:
-            tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made)
-        except OSError as exc:
-            raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from None
+    with _undone_on_failure(path, made, folders):
+        tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made)
         yield tmp_path
         os.replace(tmp_path, path)
-    except InputError as exc:
-        _discard(made, folders)
-        renamed = _renamed(exc, made[0], path) if made else exc
-        if renamed is exc:
-            raise
-        raise renamed from None
-    except OSError as exc:
-        _discard(made, folders)
-        if not _ours(exc, made):
-            raise                                 # an input's error, not the output's: as it is
-        # a full disk, a lost permission: name the destination, never the temporary name
-        raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from exc
-    except BaseException:
-        _discard(made, folders)
-        raise
 
 
 @contextlib.contextmanager
@@ -274,39 +282,22 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     kept: list[Path] = []            # where the earlier outputs wait while a swap renames
     swapped = False                  # the earlier outputs are out of ``path``
     try:
-        try:
+        with _undone_on_failure(path, made, folders):
             tmp = _fresh(path if foreign else path.parent, f".{path.name}.", ".tmp", True, made)
-        except OSError as exc:
-            raise InputError(f"cannot write: {exc.strerror or exc}", path=path) from None
-        yield tmp
-        if foreign:
-            names = sorted(p.name for p in tmp.iterdir())
-            _check_free(path, names)
-            for name in names:
-                os.rename(tmp / name, path / name)
-            tmp.rmdir()
-            return
-        if swap:
-            old = _fresh(path.parent, f".{path.name}.", ".old.tmp", True, kept)
-            swapped = True               # set first: an interruption inside the rename is covered
-            os.replace(path, old)
-        os.replace(tmp, path)               # onto an empty folder too (POSIX rename)
-        swapped = False                     # the new outputs are in: the earlier ones go
-    except InputError as exc:
-        _discard(made, folders)
-        renamed = _renamed(exc, made[0], path) if made else exc
-        if renamed is exc:
-            raise
-        raise renamed from None
-    except OSError as exc:
-        _discard(made, folders)
-        if not _ours(exc, made) and not _ours(exc, [path]):
-            raise                                 # an input's error, not the output's: as it is
-        where = Path(str(exc.filename).replace(str(made[0]), str(path), 1)) if exc.filename and made else path
-        raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
-    except BaseException:
-        _discard(made, folders)
-        raise
+            yield tmp
+            if foreign:
+                names = sorted(p.name for p in tmp.iterdir())
+                _check_free(path, names)
+                for name in names:
+                    os.rename(tmp / name, path / name)
+                tmp.rmdir()
+                return
+            if swap:
+                old = _fresh(path.parent, f".{path.name}.", ".old.tmp", True, kept)
+                swapped = True           # set first: an interruption inside the rename is covered
+                os.replace(path, old)
+            os.replace(tmp, path)           # onto an empty folder too (POSIX rename)
+            swapped = False                 # the new outputs are in: the earlier ones go
     finally:
         if swapped and not os.path.lexists(path):
             with contextlib.suppress(OSError):

@@ -82,6 +82,21 @@ def test_fulltext_fallback_and_empty(index):
         index.search("   ")
 
 
+def test_a_damaged_fulltext_index_is_no_empty_answer(index, tmp_path):
+    """quick_check does not look inside FTS5's blocks: zeroed, they read as 'no match'."""
+    import contextlib
+    import sqlite3
+
+    assert index.search("inside")
+    with contextlib.closing(sqlite3.connect(index.path)) as conn, conn:
+        conn.execute("UPDATE sentences_fts_data SET block = zeroblob(length(block)) WHERE id > 10")
+    with EventIndex(index.path, write=False) as damaged:
+        for query in ("inside", "zebra"):
+            with pytest.raises(InputError, match="damaged index"):
+                damaged.search(query)
+        assert damaged.search("person 2 exits")    # structured answers do not read the full-text index
+
+
 def test_readding_replaces_video(index, tmp_path):
     assert len(index.videos()) == 2
     index.add_run(tmp_path / "campus")

@@ -342,12 +342,26 @@ class EventIndex:
         ).fetchall()
         rank = {sid: -score for sid, score in rows}
         if not rank:
+            self._check_fulltext()
             return []
         where = f" AND s.id IN ({','.join('?' * len(rank))})"
         return [Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), action, adjective, subject, run_dir,
                     match="fulltext", source=src)
                 for name, src, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
                 in self._rows(video, where, tuple(rank))]
+
+
+    def _check_fulltext(self) -> None:
+        """Raise (through :meth:`_errors`) when the full-text index is damaged. ``PRAGMA
+        quick_check`` does not look inside FTS5's blocks, and a zeroed block reads as no match; FTS5's
+        own integrity check is a write statement, so it runs on a copy in memory (only when a search
+        finds nothing, which is the answer a damaged index would give)."""
+        copy = sqlite3.connect(":memory:")
+        try:
+            self.conn.backup(copy)
+            copy.execute("INSERT INTO sentences_fts(sentences_fts) VALUES('integrity-check')")
+        finally:
+            copy.close()
 
 
 def _canon_verb(verb: str | None) -> str | None:

@@ -300,3 +300,15 @@ def test_bad_arrays():
         evaluate_tools({1: np.zeros((2, 3))}, {})
     with pytest.raises(InputError, match=r"\(k, 6\)"):
         evaluate_tools({}, {1: np.zeros((2, 4))})
+
+
+def test_no_frame_in_common_is_an_error(tmp_path, run_cli):
+    """Predictions numbered from 1 against annotations numbered by file name: recall 0 would blame
+    the predictor; the frame numbers do not match."""
+    with pytest.raises(InputError, match=r"annotated frames 1-2, predicted 101-102"):
+        evaluate_tools(_gt({1: [(10, 10, 0.0)], 2: [(10, 10, 0.0)]}),
+                       _pred({101: [(0, 10, 10, 0.0)], 102: [(0, 10, 10, 0.0)]}))
+    gt = _write(tmp_path, f"{TOOLS_HEADER}\n1,0,10,10,20,0\n", "gt.csv")
+    pred = _write(tmp_path, f"{PRED_HEADER}\n101,0,10,10,20,0,1\n", "pred.csv")
+    code, out, err = run_cli("tool", "eval", str(gt), str(pred))
+    assert code == 2 and err.count("\n") == 1 and "pred.csv: no predicted frame is an annotated one" in err

@@ -132,7 +132,11 @@ def evaluate(
     check_range("--radius", radius, 0.0, 1e6, lo_open=True)
     if fps is not None:
         check_range("--fps", fps, 0.0, 1e9, lo_open=True)
-    res = evaluate_tools(read_tools_csv(gt), read_predictions(pred), radius=radius, fps=fps)
+    truth, predictions = read_tools_csv(gt), read_predictions(pred)
+    try:
+        res = evaluate_tools(truth, predictions, radius=radius, fps=fps)
+    except InputError as exc:   # the frames of the two files do not meet
+        raise InputError(exc.reason, path=pred) from None
     typer.echo(json.dumps(res, allow_nan=False) if as_json else format_report(res))
 
 

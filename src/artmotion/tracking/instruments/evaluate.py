@@ -90,6 +90,17 @@ def _gt_identities(gt: dict[int, np.ndarray], link: float) -> dict[int, np.ndarr
     return ids
 
 
+def _check_common_frames(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray]) -> None:
+    """An :class:`InputError` when both sides have heads but on no frame in common: the frame
+    numbers do not match (a video numbered from 1 against annotations of its frames' file names),
+    and a recall of 0 would blame the predictor."""
+    annotated = sorted(f for f, a in gt.items() if len(a))
+    predicted = sorted(f for f, a in pred.items() if len(a))
+    if annotated and predicted and not set(annotated) & set(predicted):
+        raise InputError(f"no predicted frame is an annotated one (annotated frames {annotated[0]}-{annotated[-1]}, "
+                         f"predicted {predicted[0]}-{predicted[-1]}): do the frame numbers match?")
+
+
 def _angle_error_deg(a: float, b: float) -> float:
     d = abs(a - b) % math.tau
     return math.degrees(min(d, math.tau - d))
@@ -115,6 +126,7 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
         fps = float(check_range("fps", fps, 0, 1e9, lo_open=True))
     gt = _arrays(gt, 4, "annotations")
     pred = _arrays(pred, 6, "predictions")
+    _check_common_frames(gt, pred)
     identities = _gt_identities(gt, link)
     empty_gt, empty_pred = np.zeros((0, 4)), np.zeros((0, 6))
     last_track: dict[int, int] = {}          # true identity -> track it was last matched to

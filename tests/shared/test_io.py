@@ -189,6 +189,37 @@ def test_image_size_from_the_header():
     assert _header_size(np.frombuffer(b"\xff\xd8\xff", np.uint8)) is None
 
 
+def test_tiffs_artmotion_cannot_take_are_named(tmp_path):
+    """A TIFF of several pages decoded to its first page, said nothing; one of float samples was
+    'corrupt or not an image'. A reduced-resolution page (a thumbnail) is no second page."""
+    import cv2
+
+    from artmotion.io.media import read_image
+
+    img = np.full((30, 50, 3), 90, np.uint8)
+    for name, ok in (("one.tif", cv2.imwrite(str(tmp_path / "one.tif"), img)),
+                     ("u16.tif", cv2.imwrite(str(tmp_path / "u16.tif"), img.astype(np.uint16) * 257)),
+                     ("two.tif", cv2.imwritemulti(str(tmp_path / "two.tif"), [img, img])),
+                     ("float.tif", cv2.imwrite(str(tmp_path / "float.tif"), img.astype(np.float32) / 255))):
+        assert ok, name
+    assert read_image(tmp_path / "one.tif").shape == (30, 50, 3)
+    assert read_image(tmp_path / "u16.tif").shape == (30, 50, 3)
+    with pytest.raises(InputError, match="two.tif: a TIFF of 2 pages"):
+        read_image(tmp_path / "two.tif")
+    with pytest.raises(InputError, match="float.tif: a TIFF of floating-point samples"):
+        read_image(tmp_path / "float.tif")
+    data = bytearray((tmp_path / "two.tif").read_bytes())     # mark the second page a thumbnail
+    second = int.from_bytes(data[4:8], "little")
+    second = int.from_bytes(data[second + 2 + 12 * int.from_bytes(data[second:second + 2], "little"):][:4], "little")
+    entries = int.from_bytes(data[second:second + 2], "little")
+    tags = [second + 2 + 12 * k for k in range(entries)]
+    e = next(e for e in tags if int.from_bytes(data[e:e + 2], "little") == 254)   # NewSubfileType
+    assert int.from_bytes(data[e + 8:e + 12], "little") & 1 == 0     # OpenCV's: a page (2), full size
+    data[e + 2:e + 12] = (4).to_bytes(2, "little") + (1).to_bytes(4, "little") + (1).to_bytes(4, "little")
+    (tmp_path / "thumb.tif").write_bytes(bytes(data))
+    assert read_image(tmp_path / "thumb.tif").shape == (30, 50, 3)
+
+
 def test_check_writable(tmp_path):
     from artmotion.io import check_writable
 

@@ -39,6 +39,7 @@ import threading
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -131,6 +132,60 @@ def _png_structure(data: bytes) -> tuple[str | None, _Size]:
         pos = end
 
 
+def _tiff_structure(data: bytes) -> tuple[str | None, _Size]:
+    """What artmotion cannot take in the TIFF bytes ``data`` — more than one page (a stack of
+    frames: OpenCV decodes the first and says nothing), or floating-point samples (no 8-bit
+    picture without a range nobody stated) — or ``None``; and the first page's ``(width, height)``.
+    Reduced-resolution pages (thumbnails, ``NewSubfileType`` bit 0) are no pages. Damage is left to
+    the decoder."""
+    order: Literal["little", "big"] = "little" if data[:2] == b"II" else "big"
+    big = int.from_bytes(data[2:4], order) == 43                  # BigTIFF: 8-byte offsets
+    off_size, count_size, entry_size = (8, 8, 20) if big else (4, 2, 12)
+    head = 16 if big else 8
+
+    def uint(at: int, size: int) -> int:
+        return int.from_bytes(data[at:at + size], order)
+
+    def tags(at: int) -> dict[int, int] | None:    # an IFD's numeric tags (first value), or None if cut
+        if at + count_size > len(data):
+            return None
+        n = uint(at, count_size)
+        found = {}
+        for k in range(min(n, 4096)):
+            e = at + count_size + k * entry_size
+            if e + entry_size > len(data):
+                return None
+            size = {3: 2, 4: 4, 16: 8}.get(uint(e + 2, 2))      # SHORT, LONG, LONG8
+            if size is not None:       # tag, type, count, then the values or, if they do not fit, their offset
+                value = e + 4 + off_size
+                if uint(e + 4, off_size) * size > off_size:
+                    value = uint(value, off_size)
+                found[uint(e, 2)] = uint(value, size)
+        found[-1] = uint(at + count_size + n * entry_size, off_size)  # the next IFD
+        return found
+
+    first = tags(uint(head - off_size, off_size)) if len(data) >= head else None
+    if first is None:
+        return None, None
+    size = (first[256], first[257]) if 256 in first and 257 in first else None
+    if first.get(339) == 3:                                        # SampleFormat: IEEE float
+        return ("a TIFF of floating-point samples: artmotion reads 8- or 16-bit images (convert it, "
+                "e.g. scaled to 0-255)"), size
+    seen: set[int] = set()
+    at, pages = first[-1], 1
+    while at and at not in seen and len(seen) < 10_000:
+        seen.add(at)
+        ifd = tags(at)
+        if ifd is None:
+            break
+        pages += not ifd.get(254, 0) & 1
+        at = ifd[-1]
+    if pages > 1:
+        return (f"a TIFF of {pages} pages: artmotion reads one image per file (save the pages as "
+                "numbered frames)"), size
+    return None, size
+
+
 def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
     """One walk through a JPEG's segments or a PNG's chunks: what is wrong (``None``: sound) and the
     ``(width, height)`` its header states (``None``: not found, or another format)."""
@@ -138,6 +193,8 @@ def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
         return _jpeg_structure(buf)
     if bytes(buf[:8]) == _PNG_SIGNATURE:
         return _png_structure(buf.tobytes())
+    if bytes(buf[:4]) in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        return _tiff_structure(buf.tobytes())
     return None, None
 
 

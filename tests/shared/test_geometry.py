@@ -61,7 +61,7 @@ def test_union_box_contains_members(boxes):
         assert np.isclose(overlap_ratio(b, u), 1.0)
 
 
-@given(box, st.lists(box, max_size=6))
+@given(box, st.lists(box, max_size=40))
 def test_scalar_helpers_equal_the_array_functions(a, boxes):
     # the tracker's per-box fast paths must give the very same numbers (its outputs depend on them)
     assert max_iou(a, boxes) == (iou_matrix(a, boxes).max() if boxes else 0.0)

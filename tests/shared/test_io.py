@@ -167,6 +167,9 @@ def test_kl_matrix_is_kl_divergence_exactly():
         for b, q in enumerate(hs):
             assert K[a, b] == min(kl_divergence(p, q), 3.0)
     assert np.all(np.diag(K)[:-1] == 0.0)
+    where = rng.random(K.shape) < 0.3        # only the pairs a gate lets through: the same numbers there
+    assert np.array_equal(kl_matrix(hs, hs, cap=3.0, where=where), np.where(where, K, 3.0))
+    assert np.all(kl_matrix(hs, hs, cap=3.0, where=np.zeros(K.shape, bool)) == 3.0)
     with pytest.raises(ValueError, match="8-bit"):
         rgb_histogram(img.astype(float), [0, 0, 30, 60])
 

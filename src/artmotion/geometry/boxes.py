@@ -79,10 +79,14 @@ def _overlap_terms(a: list, b: list) -> tuple[float, float, float]:
 
 def max_iou(box, boxes) -> float:
     """Largest IoU of one ``box`` with any of ``boxes`` (``(N, 4)``; 0 when there are none):
-    ``iou_matrix(box, boxes).max()`` for the few boxes of one frame."""
+    ``iou_matrix(box, boxes).max()``, on Python floats for the few boxes of one frame (the same
+    arithmetic, so the same numbers) and with NumPy for many."""
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    if len(boxes) > 16:
+        return float(iou(np.asarray(box, dtype=float).reshape(4), boxes).max())
     a = np.asarray(box, dtype=float).reshape(4).tolist()
     best = 0.0
-    for b in np.asarray(boxes, dtype=float).reshape(-1, 4).tolist():
+    for b in boxes.tolist():
         inter, area_a, area_b = _overlap_terms(a, b)
         union = area_a + area_b - inter
         best = max(best, inter / union if union > 0 else 0.0)

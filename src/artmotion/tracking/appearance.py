@@ -52,14 +52,21 @@ def kl_divergence(p: np.ndarray | None, q: np.ndarray | None) -> float:
     return float(np.sum(p * np.log(p / q)))
 
 
-def kl_matrix(ps: list, qs: list, cap: float = np.inf) -> np.ndarray:
-    """``(len(ps), len(qs))`` matrix of ``min(KL(p || q), cap)`` (``cap`` where either is ``None``)."""
+def kl_matrix(ps: list, qs: list, cap: float = np.inf, where: np.ndarray | None = None) -> np.ndarray:
+    """``(len(ps), len(qs))`` matrix of ``min(KL(p || q), cap)`` (``cap`` where either is ``None``,
+    and where the boolean matrix ``where`` is False: pairs the caller will not look at)."""
     out = np.full((len(ps), len(qs)), float(cap))
-    i = [k for k, p in enumerate(ps) if p is not None]
-    j = [k for k, q in enumerate(qs) if q is not None]
-    if i and j:
-        P = np.stack([ps[k].ravel() for k in i])[:, None, :]
-        Q = np.stack([qs[k].ravel() for k in j])[None, :, :]
+    known = np.zeros(out.shape, dtype=bool)
+    known[np.ix_([p is not None for p in ps], [q is not None for q in qs])] = True
+    i, j = np.nonzero(known if where is None else known & where)
+    if len(i):      # pair by pair: the cost of a crowd's frame grows with its pairs, not tracks x detections
+        rows, cols = np.unique(i), np.unique(j)
+        P = np.zeros((len(ps), ps[rows[0]].size))
+        Q = np.zeros((len(qs), qs[cols[0]].size))
+        P[rows] = [ps[k].ravel() for k in rows]
+        Q[cols] = [qs[k].ravel() for k in cols]
         # the same sum as kl_divergence, term by term (not via a matrix product: equal costs stay equal)
-        out[np.ix_(i, j)] = np.minimum(np.sum(P * np.log(P / Q), axis=2), cap)
+        for a in range(0, len(i), 4096):              # bounded memory
+            Pa, Qa = P[i[a:a + 4096]], Q[j[a:a + 4096]]
+            out[i[a:a + 4096], j[a:a + 4096]] = np.minimum(np.sum(Pa * np.log(Pa / Qa), axis=1), cap)
     return out

@@ -263,11 +263,16 @@ class OnlineTracker:
             if self.noise is not None:
                 self._adapt_noise([tracks[i] for i in mi], n, mboxes)
             self.bank.update(mslots, mboxes)
+        if self._needs_hist():   # the boxes and states the clean-view test below sees, kept as they change
+            box_now = np.array([t.box for t in tracks], dtype=float).reshape(-1, 4)
+            confirmed = np.array([t.state == "confirmed" for t in tracks], dtype=bool)
         for i, t in enumerate(tracks):
             j = matched.get(i)
             if j is None:
                 t.misses += gap
                 t.entity.box = pred[i]
+                if self._needs_hist():
+                    box_now[i] = pred[i]
                 continue
             d = dets[j]
             t.hits += 1
@@ -278,9 +283,11 @@ class OnlineTracker:
             t.kinds[-1] = DETECTED if t.state == "confirmed" else TENTATIVE
             t.scores[-1] = float(d[4])
             if self._needs_hist():
-                # appearance from clean views only (no other track over the detection)
-                others = [o.box for o in tracks if o is not t and o.state == "confirmed"]
-                if max_iou(d[:4], others) < 0.1:
+                # appearance from clean views only (no other confirmed track over the detection)
+                confirmed[i] = t.state == "confirmed"
+                others = confirmed.copy()
+                others[i] = False
+                if max_iou(d[:4], box_now[others]) < 0.1:
                     self._update_hist(t, frame, d[:4], self._det_hist(frame, j))
         if len(slots):
             boxes = self.bank.boxes(slots)
@@ -305,13 +312,17 @@ class OnlineTracker:
         if dets is not None and len(dets):
             used = set(matched.values())
             free = [j for j in np.argsort(-dets[:, 4]) if j not in used and dets[j, 4] >= cfg.high]
-            live = [t.box for t in self.tracks]
+            live = np.zeros((len(self.tracks) + len(free), 4))      # the live tracks' boxes, births added
+            n_live = len(self.tracks)
+            for k, t in enumerate(self.tracks):
+                live[k] = t.box
             for j in free:
                 d = dets[j]
-                if max_iou(d[:4], live) >= cfg.birth_iou:
+                if max_iou(d[:4], live[:n_live]) >= cfg.birth_iou:
                     continue
                 t = self._new_track(frame, d, self._det_hist(frame, j) if self._needs_hist() else None)
-                live.append(t.box)
+                live[n_live] = t.box
+                n_live += 1
 
         if self.groups:
             self.group_log[n] = {g.id: tuple(m.id for m in g.members) for g in self.groups}
@@ -379,9 +390,13 @@ class OnlineTracker:
             if not rows or not len(cols):
                 continue
             cost, _ = iou_cost(pred[rows], dets[cols, :4], gate)
-            if cfg.app_weight > 0 or cfg.reacquire_kl > 0:
-                hs = [self._det_hist(frame, j) for j in cols]
-                K = kl_matrix([tracks[i].hist for i in rows], hs, cap=3.0)
+            if cfg.app_weight > 0 or cfg.reacquire_kl > 0:   # appearance matters only where the gate lets a pair
+                allowed = cost < INF
+                seen = np.flatnonzero(allowed.any(axis=0))
+                hs: list = [None] * len(cols)
+                for k in seen:
+                    hs[k] = self._det_hist(frame, cols[k])
+                K = kl_matrix([tracks[i].hist for i in rows], hs, cap=3.0, where=allowed)
                 if cfg.app_weight > 0:
                     cost = np.where(cost < INF, cost + cfg.app_weight * K, INF)
                 if cfg.reacquire_kl > 0:

@@ -87,3 +87,14 @@ def need_package(module: str, extra: str, what: str) -> None:
 
     if importlib.util.find_spec(module) is None:
         raise InputError(f"{module} is not installed ({what} needs it): pip install 'artmotion[{extra}]' (or make install)")
+
+
+def float_array(value, name: str):
+    """``value`` as a float NumPy array, else an :class:`InputError` saying that ``name`` must be
+    an array of numbers (text, ragged lists, objects). For arrays given to the Python API."""
+    import numpy as np
+
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of numbers") from None

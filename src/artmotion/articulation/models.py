@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 
 __all__ = [
     "PointModel",
@@ -41,17 +41,9 @@ __all__ = [
 MAX_COORD = 1e100
 
 
-def _float_array(X, what: str) -> np.ndarray:
-    """``X`` as a float array, or an :class:`InputError` saying that ``what`` must be numbers."""
-    try:
-        return np.asarray(X, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{what} must be an array of numbers") from None
-
-
 def as_points3(X) -> tuple[np.ndarray, int]:
     """``(n, 3)`` float array and the original dimension (2 or 3)."""
-    X = _float_array(X, "points")
+    X = float_array(X, "points")
     if X.ndim != 2 or X.shape[1] not in (2, 3):
         raise InputError(f"points must be an (n, 2) or (n, 3) array, got shape {X.shape}")
     if not np.all(np.isfinite(X)):
@@ -194,7 +186,7 @@ class PointModel:
         """``X`` and ``weights`` as float arrays, checked: finite points of a dimension the model
         takes, at least :attr:`min_points` of them, and one finite, non-negative weight per point
         with a positive sum; else an :class:`InputError`."""
-        X = _float_array(X, "points")
+        X = float_array(X, "points")
         if X.ndim != 2 or X.shape[1] not in self.dims:
             want = " or ".join(f"(n, {d})" for d in self.dims)
             raise InputError(f"{self.name} model: points must be an {want} array, got shape {X.shape}")
@@ -206,7 +198,7 @@ class PointModel:
         if float(np.abs(X).max()) > MAX_COORD:
             raise InputError(f"{self.name} model: points must be coordinates of magnitude at most {MAX_COORD:g}")
         if weights is not None:
-            weights = _float_array(weights, "weights")
+            weights = float_array(weights, "weights")
             if weights.shape != (len(X),):
                 raise InputError(f"{self.name} model: needs one weight per point ({len(X)}), got shape {weights.shape}")
             if not (np.all(np.isfinite(weights)) and np.all(weights >= 0.0) and weights.sum() > 0.0):
@@ -218,7 +210,7 @@ class PointModel:
 
     def _motion_input(self, q) -> np.ndarray:
         """Motion variables as an ``(n, dof)`` float array (finite), else an :class:`InputError`."""
-        q = _float_array(q, "motion variables")
+        q = float_array(q, "motion variables")
         if q.size % self.dof or not np.all(np.isfinite(q)):
             raise InputError(f"{self.name} model: motion variables must be finite numbers, {self.dof} per point")
         return q.reshape(-1, self.dof)

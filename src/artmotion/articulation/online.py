@@ -63,8 +63,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.articulation.models import MAX_COORD, POINT_MODELS, _float_array, as_points3, make_model
-from artmotion.errors import InputError, check_range
+from artmotion.articulation.models import MAX_COORD, POINT_MODELS, as_points3, make_model
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.filters import taylor_model, taylor_transition
 
 __all__ = ["OnlineEstimator", "OnlineResult", "autocorrelation_time", "curvature_occam", "estimate_online", "robust_scale"]
@@ -712,7 +712,7 @@ class OnlineEstimator:
     # -- the algorithm
     def update(self, z, t: float | None = None) -> dict:
         """Add one observation (2-D or 3-D point); returns the current model probabilities."""
-        z = _float_array(z, "an observation").reshape(-1)
+        z = float_array(z, "an observation").reshape(-1)
         if z.shape[0] == 2:
             z = np.array([z[0], z[1], 0.0])
         if z.shape[0] != 3:
@@ -818,7 +818,7 @@ def estimate_online(X, t=None, **kwargs) -> OnlineResult:
     """Run Algorithm 1 over a whole track ``X`` (``(n, 2)`` or ``(n, 3)``), sample by sample."""
     X3, dim = as_points3(X)
     if t is not None:
-        t = _float_array(t, "time stamps")
+        t = float_array(t, "time stamps")
         if t.shape != (len(X3),):
             raise InputError(f"t must hold one time stamp per sample ({len(X3)}), got shape {t.shape}")
     kwargs.setdefault("dim", dim)

@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from artmotion.articulation.models import MAX_COORD, _float_array, _orthonormal_to
-from artmotion.errors import InputError, check_range
+from artmotion.articulation.models import MAX_COORD, _orthonormal_to
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.geometry.rotations import quat_to_matrix
 
 __all__ = ["factorize", "classify_motion", "classify_points", "classify_poses", "RigidResult", "stack_w"]
@@ -77,7 +77,7 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
     """
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    tracks = _float_array(tracks, "rigid-body tracks")
+    tracks = float_array(tracks, "rigid-body tracks")
     if tracks.ndim != 3 or tracks.shape[2] != 3 or tracks.shape[1] < 3 or tracks.shape[0] < 2:
         raise InputError(f"need at least 3 points over 2 frames as (frames, points, 3), got {tracks.shape}")
     if not np.all(np.isfinite(tracks)):
@@ -278,8 +278,8 @@ def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "aut
 def classify_poses(positions: np.ndarray, quats: np.ndarray, noise: float = 0.005, size: float = 0.1) -> RigidResult:
     """Classify a 6-D pose track: positions ``(F, 3)`` and unit quaternions ``(F, 4)`` (x, y, z, w)."""
     _check_noise_size(noise, size)
-    t = _float_array(positions, "positions")
-    quats = _float_array(quats, "quaternions")
+    t = float_array(positions, "positions")
+    quats = float_array(quats, "quaternions")
     if t.ndim != 2 or t.shape[1] != 3:
         raise InputError(f"positions must be an (F, 3) array, got shape {t.shape}")
     if quats.ndim != 2 or quats.shape[1] != 4:

@@ -11,17 +11,14 @@ import math
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 
 _LOG2PI = math.log(2.0 * math.pi)
 
 
 def _matrix(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a float array of ``shape`` with finite entries, else an :class:`InputError`."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"Kalman filter: {name} must be an array of numbers") from None
+    a = float_array(value, f"Kalman filter: {name}").copy()
     if a.shape != shape:
         raise InputError(f"Kalman filter: {name} must have shape {shape}"
                          f"{' for a state of ' + str(shape[1]) if len(shape) == 2 else ''}, got {a.shape}")
@@ -58,10 +55,7 @@ class KalmanFilter:
     """
 
     def __init__(self, x, P, F, Q, H, R):
-        try:
-            self.x = np.asarray(x, dtype=float).reshape(-1).copy()
-        except (TypeError, ValueError):
-            raise InputError("Kalman filter: x must be an array of numbers") from None
+        self.x = float_array(x, "Kalman filter: x").reshape(-1).copy()
         n = len(self.x)
         if n == 0 or not np.all(np.isfinite(self.x)):
             raise InputError("Kalman filter: x must be a non-empty state of finite numbers")

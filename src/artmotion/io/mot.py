@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 from artmotion.io.atomic import atomic_write
 from artmotion.io.files import number, read_text
 
@@ -116,10 +116,7 @@ def check_mot_rows(rows, what: str = "tracks") -> np.ndarray:
     frames in ``[1, MAX_FRAME]`` and ids, finite values, positive sizes, coordinates within
     :data:`MAX_COORD`, at most :data:`MAX_BOXES_PER_FRAME` boxes a frame); else an
     :class:`InputError` naming ``what``. For arrays given to the API, which no file reader checked."""
-    try:
-        arr = np.asarray(rows, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{what}: not a numeric array ({exc})") from None
+    arr = float_array(rows, what)
     if arr.size == 0:
         return arr.reshape(0, 10)
     if arr.ndim != 2 or arr.shape[1] < 6:

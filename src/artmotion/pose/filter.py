@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.filters import constant_velocity
 from artmotion.io.mot import MAX_FRAME
 
@@ -90,16 +90,9 @@ def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.
     return scale, band[0], band[1]
 
 
-def _numbers(name: str, value) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be an array of numbers") from None
-
-
 def _positive(name: str, value) -> np.ndarray:
     """``value`` as a float array of finite positive numbers, else an :class:`InputError`."""
-    a = np.atleast_1d(_numbers(name, value))
+    a = np.atleast_1d(float_array(value, name))
     if not (np.all(np.isfinite(a)) and np.all(a > 0.0)):
         raise InputError(f"{name} must be finite and positive, got {a.ravel()[:8].tolist()}")
     return a if np.ndim(value) else a.reshape(())
@@ -144,8 +137,8 @@ class PoseFilter:
     def _check(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         """``mean`` and ``std`` as 2-D float arrays of the same shape, one column per angle, finite
         (``std`` non-negative); else an :class:`InputError`."""
-        mean = np.atleast_2d(_numbers("mean", mean))
-        std = np.atleast_2d(_numbers("std", std))
+        mean = np.atleast_2d(float_array(mean, "mean"))
+        std = np.atleast_2d(float_array(std, "std"))
         if mean.ndim != 2 or mean.shape[1] != len(self.accel_var):
             raise InputError(f"expected {len(self.accel_var)} angles per row of means, got shape {mean.shape}")
         if std.shape != mean.shape:
@@ -225,7 +218,7 @@ class PoseFilter:
         rows on either side for neighbours."""
         mean, std = self._check(mean, std)
         if frames is not None:
-            frames = _numbers("frames", frames)
+            frames = float_array(frames, "frames")
             if frames.ndim != 1 or not np.all(np.isfinite(frames)) or np.any(frames != np.round(frames)):
                 raise InputError("frames must be whole numbers, one per row")
             if len(frames) != len(mean) or np.any(np.diff(frames) < 1):

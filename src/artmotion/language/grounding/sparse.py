@@ -29,7 +29,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import lars_path_gram
 from sklearn.metrics import silhouette_score, v_measure_score
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 
 LAMBDA = 0.15
 
@@ -37,10 +37,7 @@ LAMBDA = 0.15
 def _features(name: str, X, dim: int | None = None) -> np.ndarray:
     """``X`` as an ``(N, d)`` float array of finite numbers (``d == dim`` when given), else an
     :class:`InputError` naming ``name``."""
-    try:
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-    except (TypeError, ValueError):
-        raise InputError(f"{name} features must be an array of numbers") from None
+    X = np.atleast_2d(float_array(X, f"{name} features"))
     if X.ndim != 2:
         raise InputError(f"{name} features must be an (examples, dimensions) array, got shape {X.shape}")
     if dim is not None and X.shape[1] != dim:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range, check_seed, need_package
+from artmotion.errors import InputError, check_range, check_seed, float_array, need_package
 from artmotion.io.media import check_frame
 
 __all__ = ["ToolDetector", "finite_rows", "need_torch"]
@@ -40,10 +40,7 @@ def scale_to(trained: tuple[int, int], frame: tuple[int, int], tolerance: float 
 def finite_rows(values, width: int, what: str, columns: str) -> np.ndarray:
     """``values`` as a ``(k, width)`` array of finite numbers (a single row may be flat); else an
     :class:`InputError` naming ``what`` and its ``columns``."""
-    try:
-        A = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{what} are not a (k, {width}) array of numbers ({columns})") from None
+    A = float_array(values, f"{what} ({columns})")
     if A.size == 0:
         return A.reshape(0, width)
     if A.ndim not in (1, 2) or A.shape[-1] != width:

@@ -55,6 +55,30 @@ __all__ = ["KINDS", "OnlineTracker", "Track"]
 
 
 
+def _clean_views(tracks: list, matched: dict[int, int], dets: np.ndarray, old: np.ndarray, pred: np.ndarray,
+                 was_confirmed: np.ndarray) -> list[int]:
+    """The matched tracks (indices into ``tracks``, ascending) whose detection no other confirmed
+    track overlaps (IoU < 0.1): a clean view of the person for the appearance model. Each is
+    judged as the frame's update passes over the tracks in order: the tracks before it that lost
+    their detection are at their predicted boxes (``pred``), the others at their boxes before the
+    update (``old``), and the tracks before it confirmed by this frame's detection count as
+    confirmed."""
+    rows = np.array(sorted(matched))
+    unmatched = np.ones(len(tracks), dtype=bool)
+    unmatched[rows] = False
+    confirmed = np.array([t.state == "confirmed" for t in tracks], dtype=bool)
+    clean = []
+    for a in range(0, len(rows), 256):         # bounded memory in a crowd
+        r = rows[a:a + 256]
+        D = dets[[matched[int(i)] for i in r], :4]
+        before = np.arange(len(tracks))[None, :] < r[:, None]
+        M = np.where(unmatched & before, iou_matrix(D, pred), iou_matrix(D, old))
+        others = np.where(before, confirmed, was_confirmed)
+        others[np.arange(len(r)), r] = False
+        clean += r[np.where(others, M, 0.0).max(axis=1, initial=0.0) < 0.1].tolist()
+    return clean
+
+
 @dataclass
 class Track:
     """One tracked entity and its history (for the offline pass)."""
@@ -263,16 +287,14 @@ class OnlineTracker:
             if self.noise is not None:
                 self._adapt_noise([tracks[i] for i in mi], n, mboxes)
             self.bank.update(mslots, mboxes)
-        if self._needs_hist():   # the boxes and states the clean-view test below sees, kept as they change
-            box_now = np.array([t.box for t in tracks], dtype=float).reshape(-1, 4)
-            confirmed = np.array([t.state == "confirmed" for t in tracks], dtype=bool)
+        if self._needs_hist() and matched:      # for the clean-view test below
+            old = np.array([t.box for t in tracks], dtype=float).reshape(-1, 4)
+            was_confirmed = np.array([t.state == "confirmed" for t in tracks], dtype=bool)
         for i, t in enumerate(tracks):
             j = matched.get(i)
             if j is None:
                 t.misses += gap
                 t.entity.box = pred[i]
-                if self._needs_hist():
-                    box_now[i] = pred[i]
                 continue
             d = dets[j]
             t.hits += 1
@@ -282,13 +304,11 @@ class OnlineTracker:
                 self._confirm(t, n)
             t.kinds[-1] = DETECTED if t.state == "confirmed" else TENTATIVE
             t.scores[-1] = float(d[4])
-            if self._needs_hist():
-                # appearance from clean views only (no other confirmed track over the detection)
-                confirmed[i] = t.state == "confirmed"
-                others = confirmed.copy()
-                others[i] = False
-                if max_iou(d[:4], box_now[others]) < 0.1:
-                    self._update_hist(t, frame, d[:4], self._det_hist(frame, j))
+        if self._needs_hist() and matched:
+            # appearance from clean views only (no other confirmed track over the detection)
+            for i in _clean_views(tracks, matched, dets, old, pred, was_confirmed):
+                t, j = tracks[i], matched[i]
+                self._update_hist(t, frame, dets[j, :4], self._det_hist(frame, j))
         if len(slots):
             boxes = self.bank.boxes(slots)
             for i, t in enumerate(tracks):

@@ -56,15 +56,12 @@ def kl_matrix(ps: list, qs: list, cap: float = np.inf, where: np.ndarray | None 
     """``(len(ps), len(qs))`` matrix of ``min(KL(p || q), cap)`` (``cap`` where either is ``None``,
     and where the boolean matrix ``where`` is False: pairs the caller will not look at)."""
     out = np.full((len(ps), len(qs)), float(cap))
-    known = np.zeros(out.shape, dtype=bool)
-    known[np.ix_([p is not None for p in ps], [q is not None for q in qs])] = True
-    i, j = np.nonzero(known if where is None else known & where)
+    mask = np.array([p is not None for p in ps])[:, None] & np.array([q is not None for q in qs])[None, :]
+    i, j = np.nonzero(mask if where is None else mask & where)
     if len(i):      # pair by pair: the cost of a crowd's frame grows with its pairs, not tracks x detections
-        rows, cols = np.unique(i), np.unique(j)
-        P = np.zeros((len(ps), ps[rows[0]].size))
-        Q = np.zeros((len(qs), qs[cols[0]].size))
-        P[rows] = [ps[k].ravel() for k in rows]
-        Q[cols] = [qs[k].ravel() for k in cols]
+        one = np.ones(ps[int(i[0])].size)
+        P = np.stack([one if p is None else p.ravel() for p in ps])
+        Q = np.stack([one if q is None else q.ravel() for q in qs])
         # the same sum as kl_divergence, term by term (not via a matrix product: equal costs stay equal)
         for a in range(0, len(i), 4096):              # bounded memory
             Pa, Qa = P[i[a:a + 4096]], Q[j[a:a + 4096]]

@@ -350,7 +350,6 @@ class EventIndex:
                 for name, src, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
                 in self._rows(video, where, tuple(rank))]
 
-
     def _check_fulltext(self) -> None:
         """Raise (through :meth:`_errors`) when the full-text index is damaged. ``PRAGMA
         quick_check`` does not look inside FTS5's blocks, and a zeroed block reads as no match; FTS5's

@@ -187,8 +187,9 @@ def _tiff_structure(data: bytes) -> tuple[str | None, _Size]:
 
 
 def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
-    """One walk through a JPEG's segments or a PNG's chunks: what is wrong (``None``: sound) and the
-    ``(width, height)`` its header states (``None``: not found, or another format)."""
+    """One walk through a JPEG's segments, a PNG's chunks or a TIFF's pages: what is wrong (``None``:
+    sound, or another format) and the ``(width, height)`` its header states (``None``: not found,
+    or another format)."""
     if len(buf) >= 3 and buf[0] == 0xFF and buf[1] == 0xD8 and buf[2] == 0xFF:
         return _jpeg_structure(buf)
     if bytes(buf[:8]) == _PNG_SIGNATURE:

@@ -54,7 +54,6 @@ from artmotion.tracking.state import (
 __all__ = ["KINDS", "OnlineTracker", "Track"]
 
 
-
 def _clean_views(tracks: list, matched: dict[int, int], dets: np.ndarray, old: np.ndarray, pred: np.ndarray,
                  was_confirmed: np.ndarray) -> list[int]:
     """The matched tracks (indices into ``tracks``, ascending) whose detection no other confirmed

@@ -271,3 +271,58 @@ def test_frames_that_are_not_files_are_errors_not_skipped(tmp_path):
     (folder / "000002.jpg").unlink()
     with pytest.raises(InputError, match=r"frame 2 is missing \(after 000001.jpg comes 000003.jpg\)"):
         open_sequence(folder)
+
+
+def _exif_oriented(jpeg: bytes, orientation: int) -> bytes:
+    """``jpeg`` with an EXIF segment whose orientation tag is ``orientation``."""
+    import struct
+
+    tiff = b"II*\x00" + struct.pack("<IH", 8, 1) + struct.pack("<HHIHH", 0x0112, 3, 1, orientation, 0) + b"\0" * 4
+    payload = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload + jpeg[2:]
+
+
+def test_frames_are_read_as_stored_whatever_their_orientation_tag(tmp_path, mot_folder, run_cli):
+    """Detections, ground truth and seqinfo.ini are in stored pixels: OpenCV's default turned the
+    frames by their EXIF or container tag, so seqinfo.ini's size was refused and boxes beyond the
+    turned frame were dropped without a word. The summary says the tag was not applied."""
+    from artmotion.io.media import exif_orientation
+
+    plain, turned = tmp_path / "plain", tmp_path / "turned"
+    for root, orientation in ((plain, 1), (turned, 6)):
+        shutil.copytree(mot_folder, root)
+        for png in sorted((root / "img1").glob("*.png")):
+            jpeg = cv2.imencode(".jpg", cv2.imread(str(png)))[1].tobytes()
+            png.with_suffix(".jpg").write_bytes(_exif_oriented(jpeg, orientation))
+            png.unlink()
+        ini = root / "seqinfo.ini"
+        ini.write_text(ini.read_text().replace(".png", ".jpg"))
+    first = turned / "img1" / "000001.jpg"
+    assert exif_orientation(np.fromfile(first, np.uint8)) == 6
+    assert cv2.imread(str(first)).shape[:2] == (W, H)           # OpenCV's default turns it
+    seq = open_sequence(turned)
+    assert (seq.width, seq.height, seq.orientation) == (W, H, "turn 90°")
+    assert all(img.shape[:2] == (H, W) for _, img in seq.frames())
+    assert open_sequence(plain).orientation == ""
+    outs = {}
+    for root in (plain, turned):
+        code, out, err = run_cli("track", root, "--out", tmp_path / f"{root.name}.txt")
+        assert code == 0, err
+        outs[root.name] = (tmp_path / f"{root.name}.txt").read_text()
+        assert ("as stored (not turned as its orientation tag asks: turn 90°)" in out) == (root is turned)
+    assert outs["turned"] == outs["plain"] and outs["plain"]
+
+    # a video whose track header asks for a turn of 90 degrees
+    video = tmp_path / "clip.mp4"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (W, H))
+    for png in sorted((mot_folder / "img1").glob("*.png")):
+        wr.write(cv2.imread(str(png)))
+    wr.release()
+    data = bytearray(video.read_bytes())
+    at = data.find(b"tkhd") + 4 + 4 + 4 * 5 + 8 + 8              # the version-0 header's matrix
+    data[at:at + 36] = b"".join(v.to_bytes(4, "big", signed=True)
+                                for v in (0, 0x10000, 0, -0x10000, 0, 0, 0, 0, 0x40000000))
+    video.write_bytes(bytes(data))
+    seq = open_sequence(video)
+    assert (seq.width, seq.height, seq.orientation) == (W, H, "turn 90°")
+    assert all(img.shape[:2] == (H, W) for _, img in seq.frames())

@@ -132,39 +132,49 @@ def _png_structure(data: bytes) -> tuple[str | None, _Size]:
         pos = end
 
 
+def _tiff_ifd(data: bytes, at: int, order: Literal["little", "big"], big: bool) -> dict[int, int] | None:
+    """The numeric tags (first value of each) of the TIFF image file directory at byte ``at`` of
+    ``data`` (a TIFF file, or the TIFF inside a JPEG's EXIF segment), with ``-1`` the offset of the
+    next directory; ``None`` if the data ends inside it. ``big``: BigTIFF (8-byte offsets)."""
+    off_size, count_size, entry_size = (8, 8, 20) if big else (4, 2, 12)
+
+    def uint(pos: int, size: int) -> int:
+        return int.from_bytes(data[pos:pos + size], order)
+
+    if at + count_size > len(data):
+        return None
+    n = uint(at, count_size)
+    found = {}
+    for k in range(min(n, 4096)):
+        e = at + count_size + k * entry_size
+        if e + entry_size > len(data):
+            return None
+        size = {3: 2, 4: 4, 16: 8}.get(uint(e + 2, 2))      # SHORT, LONG, LONG8
+        if size is not None:       # tag, type, count, then the values or, if they do not fit, their offset
+            value = e + 4 + off_size
+            if uint(e + 4, off_size) * size > off_size:
+                value = uint(value, off_size)
+            found[uint(e, 2)] = uint(value, size)
+    found[-1] = uint(at + count_size + n * entry_size, off_size)  # the next directory
+    return found
+
+
+def _tiff_header(data: bytes) -> tuple[Literal["little", "big"], bool, int]:
+    """Byte order, BigTIFF or not, and the first directory's offset of the TIFF bytes ``data``."""
+    order: Literal["little", "big"] = "little" if data[:2] == b"II" else "big"
+    big = int.from_bytes(data[2:4], order) == 43
+    first = int.from_bytes(data[8:16] if big else data[4:8], order)
+    return order, big, first
+
+
 def _tiff_structure(data: bytes) -> tuple[str | None, _Size]:
     """What artmotion cannot take in the TIFF bytes ``data`` — more than one page (a stack of
     frames: OpenCV decodes the first and says nothing), or floating-point samples (no 8-bit
     picture without a range nobody stated) — or ``None``; and the first page's ``(width, height)``.
     Reduced-resolution pages (thumbnails, ``NewSubfileType`` bit 0) are no pages. Damage is left to
     the decoder."""
-    order: Literal["little", "big"] = "little" if data[:2] == b"II" else "big"
-    big = int.from_bytes(data[2:4], order) == 43                  # BigTIFF: 8-byte offsets
-    off_size, count_size, entry_size = (8, 8, 20) if big else (4, 2, 12)
-    head = 16 if big else 8
-
-    def uint(at: int, size: int) -> int:
-        return int.from_bytes(data[at:at + size], order)
-
-    def tags(at: int) -> dict[int, int] | None:    # an IFD's numeric tags (first value), or None if cut
-        if at + count_size > len(data):
-            return None
-        n = uint(at, count_size)
-        found = {}
-        for k in range(min(n, 4096)):
-            e = at + count_size + k * entry_size
-            if e + entry_size > len(data):
-                return None
-            size = {3: 2, 4: 4, 16: 8}.get(uint(e + 2, 2))      # SHORT, LONG, LONG8
-            if size is not None:       # tag, type, count, then the values or, if they do not fit, their offset
-                value = e + 4 + off_size
-                if uint(e + 4, off_size) * size > off_size:
-                    value = uint(value, off_size)
-                found[uint(e, 2)] = uint(value, size)
-        found[-1] = uint(at + count_size + n * entry_size, off_size)  # the next IFD
-        return found
-
-    first = tags(uint(head - off_size, off_size)) if len(data) >= head else None
+    order, big, at = _tiff_header(data)
+    first = _tiff_ifd(data, at, order, big) if len(data) >= (16 if big else 8) else None
     if first is None:
         return None, None
     size = (first[256], first[257]) if 256 in first and 257 in first else None
@@ -175,7 +185,7 @@ def _tiff_structure(data: bytes) -> tuple[str | None, _Size]:
     at, pages = first[-1], 1
     while at and at not in seen and len(seen) < 10_000:
         seen.add(at)
-        ifd = tags(at)
+        ifd = _tiff_ifd(data, at, order, big)
         if ifd is None:
             break
         pages += not ifd.get(254, 0) & 1
@@ -184,6 +194,27 @@ def _tiff_structure(data: bytes) -> tuple[str | None, _Size]:
         return (f"a TIFF of {pages} pages: artmotion reads one image per file (save the pages as "
                 "numbered frames)"), size
     return None, size
+
+
+def exif_orientation(buf: np.ndarray) -> int:
+    """The EXIF orientation (1-8; 1: as stored) of the JPEG bytes ``buf``; 1 without one (or for
+    another format). artmotion decodes the pixels as stored and does not apply it (see
+    :func:`read_image`)."""
+    b = buf[:2**17].tobytes()
+    if not b.startswith(b"\xff\xd8"):
+        return 1
+    pos = 2
+    while pos + 4 <= len(b) and b[pos] == 0xFF and b[pos + 1] not in (0xDA, 0xD9):
+        end = pos + 2 + int.from_bytes(b[pos + 2:pos + 4], "big")
+        if b[pos + 1] == 0xE1 and b[pos + 4:pos + 10] == b"Exif\x00\x00":
+            tiff = b[pos + 10:end]
+            if len(tiff) >= 8:
+                order, big, at = _tiff_header(tiff)
+                ifd = _tiff_ifd(tiff, at, order, big)
+                value = (ifd or {}).get(0x0112, 1)
+                return value if 1 <= value <= 8 else 1
+        pos = end
+    return 1
 
 
 def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
@@ -233,8 +264,9 @@ MAX_IMAGE_PIXELS = 2**27
 def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     """Read and check an image file (see the module docstring); ``flags`` are OpenCV's imread
     flags (default ``IMREAD_COLOR``; ``IMREAD_REDUCED_COLOR_2`` etc. decode it smaller). Returns
-    the decoded image; raises :class:`InputError` for a missing, empty, damaged or undecodable
-    file."""
+    the decoded image, its pixels as stored (an EXIF orientation tag is not applied:
+    :func:`exif_orientation`); raises :class:`InputError` for a missing, empty, damaged or
+    undecodable file."""
     import cv2
 
     if "\x00" in os.fspath(path):
@@ -257,7 +289,9 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise InputError(f"image of {size[0]}x{size[1]} pixels: larger than artmotion reads "
                          f"({MAX_IMAGE_PIXELS // 2**20} megapixels at most)", path=path)
-    img, damage = _decode(buf, cv2.IMREAD_COLOR if flags is None else flags)
+    # the pixels as stored, whatever an EXIF orientation tag asks for: every coordinate artmotion
+    # reads or writes (detections, ground truth, seqinfo.ini, the header's size) is in that frame
+    img, damage = _decode(buf, (cv2.IMREAD_COLOR if flags is None else flags) | cv2.IMREAD_IGNORE_ORIENTATION)
     if damage:
         raise InputError(f"corrupt image data ({damage})", path=path)
     if img is None or img.size == 0:
@@ -334,11 +368,15 @@ _CONTAINER = ("Unexpected element",)
 
 def open_capture(path: str | os.PathLike):
     """``cv2.VideoCapture(path)``, its container parser's messages kept off stderr (a damaged AVI
-    prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error)."""
+    prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error),
+    reading the frames as stored (a rotation in the container's metadata is not applied:
+    ``CAP_PROP_ORIENTATION_META`` says what it asks for)."""
     import cv2
 
     with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER):
-        return cv2.VideoCapture(os.fspath(path))
+        cap = cv2.VideoCapture(os.fspath(path))
+    cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0)      # the frames as stored, as images (read_image)
+    return cap
 
 
 #: first bytes of video containers: (offset, bytes)

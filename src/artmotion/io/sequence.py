@@ -22,7 +22,16 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import IMAGE_EXTS, MAX_FPS, MIN_FPS, VIDEO_EXTS, check_video, open_capture, read_image
+from artmotion.io.media import (
+    IMAGE_EXTS,
+    MAX_FPS,
+    MIN_FPS,
+    VIDEO_EXTS,
+    check_video,
+    exif_orientation,
+    open_capture,
+    read_image,
+)
 from artmotion.io.mot import MAX_FRAME
 
 DEFAULT_FPS = 25.0
@@ -65,6 +74,9 @@ class Sequence:
         self.length_exact = video is None or video.suffix.lower() in _EXACT_COUNT
         #: the seqinfo.ini that declares ``length`` for a video (then a longer video is an error)
         self.length_from: Path | None = None
+        #: what the input's orientation tag asks a viewer to do with the frames (``""``: nothing),
+        #: e.g. ``"turn 90°"``; artmotion reads them as stored (boxes are in stored pixels)
+        self.orientation = ""
 
     def __len__(self) -> int:
         return self.length
@@ -194,8 +206,9 @@ def prefetched(items: Iterator, depth: int) -> Iterator:
         thread.join(timeout=5)
 
 
-def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
-    """Frame rate (``None`` if the file does not say), width, height and frame count of a video."""
+def _probe_video(video: Path) -> tuple[float | None, int, int, int, str]:
+    """Frame rate (``None`` if the file does not say), width, height and frame count of a video (as
+    stored), and what the rotation in its metadata asks a viewer to do (``""``: nothing)."""
     check_video(video)
     cap = open_capture(video)
     try:
@@ -206,10 +219,11 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int]:
             raise InputError("video has no decodable frames", path=video)
         fps = cap.get(cv2.CAP_PROP_FPS)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        turn = round(cap.get(cv2.CAP_PROP_ORIENTATION_META) or 0) % 360
     finally:
         cap.release()
     known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS
-    return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1)
+    return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1), f"turn {turn}°" if turn else ""
 
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
@@ -241,9 +255,15 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
     return sorted(files, key=lambda p: p.name)
 
 
-def _image_size(path: Path) -> tuple[int, int]:
+#: what an EXIF orientation (2-8) asks a viewer to do with the stored pixels
+_EXIF_TURNS = {2: "mirror", 3: "turn 180°", 4: "flip", 5: "mirror and turn 270°", 6: "turn 90°",
+               7: "mirror and turn 90°", 8: "turn 270°"}
+
+
+def _image_size(path: Path) -> tuple[int, int, str]:
+    """Width and height of the image as stored, and what its orientation tag asks for (``""``)."""
     img = read_image(path)
-    return img.shape[1], img.shape[0]
+    return img.shape[1], img.shape[0], _EXIF_TURNS.get(exif_orientation(np.fromfile(path, np.uint8, 2**17)), "")
 
 
 def _read_seqinfo(ini: Path) -> dict:
@@ -324,17 +344,18 @@ def _open_mot_folder(folder: Path) -> Sequence:
         if length is not None and length != len(images):
             raise InputError(f"seqinfo.ini says {length} frames but {img_dir.name}/ has {len(images)}",
                              path=img_dir)
-        w, h = _image_size(images[0])
+        w, h, turn = _image_size(images[0])
         _check_size(info, ini, w, h, images[0])
         seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt)
         seq.fps_known = known
+        seq.orientation = turn
         return seq
     videos = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
     if not videos:
         raise InputError(f"no frames: neither {img_dir.name}/ nor a video file in the folder", path=folder)
     if len(videos) > 1:
         raise InputError(f"several video files in the folder ({', '.join(v.name for v in videos)})", path=folder)
-    vfps, w, h, count = _probe_video(videos[0])
+    vfps, w, h, count, turn = _probe_video(videos[0])
     _check_size(info, ini, w, h, videos[0])
     length = _num(info, "seqlength", ini, int)
     exact = videos[0].suffix.lower() in _EXACT_COUNT
@@ -345,6 +366,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
     seq.fps_known = known or vfps is not None
     seq.length_exact = exact or length is not None
     seq.length_from = ini if length is not None else None
+    seq.orientation = turn
     return seq
 
 
@@ -376,7 +398,7 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
 
 def _open_image_folder(folder: Path) -> Sequence:
     images = _list_images(folder)
-    w, h = _image_size(images[0])
+    w, h, turn = _image_size(images[0])
     parent = folder.parent
     det = _companion(parent / "det" / "det.txt")
     gt = _companion(parent / "gt" / "gt.txt")
@@ -387,13 +409,15 @@ def _open_image_folder(folder: Path) -> Sequence:
     seq = Sequence(folder, name, fps or DEFAULT_FPS, w, h,
                    len(images), images=images, det_path=det, gt_path=gt)
     seq.fps_known = fps is not None
+    seq.orientation = turn
     return seq
 
 
 def _open_video(video: Path, name: str | None = None, folder: Path | None = None) -> Sequence:
-    fps, w, h, count = _probe_video(video)
+    fps, w, h, count, turn = _probe_video(video)
     base = folder or video.parent
     seq = Sequence(video, name or video.stem, fps or DEFAULT_FPS, w, h, count, video=video,
                    det_path=_companion(base / "det" / "det.txt"), gt_path=_companion(base / "gt" / "gt.txt"))
     seq.fps_known = fps is not None
+    seq.orientation = turn
     return seq

@@ -91,7 +91,8 @@ def track_command(
     seq = res.sequence
     kinds = ", ".join(f"{counts[k]} {k}" for k in ("enter", "exit", "merge", "split") if k in counts)
     assumed = "" if seq.fps_known else " (assumed; give --fps)"
-    typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height} @ {seq.fps:g} fps{assumed}, "
+    stored = f" as stored (not turned as its orientation tag asks: {seq.orientation})" if seq.orientation else ""
+    typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height}{stored} @ {seq.fps:g} fps{assumed}, "
                f"detections: {res.detector}, experts: {','.join(res.experts)}"
                f"{' (online)' if online else ''}")
     typer.echo(f"{res.num_tracks} tracks, {len(res.tracks)} boxes, {len(res.events)} events"

@@ -53,6 +53,23 @@ def test_video_file_and_image_folder(tmp_path, mot_folder):
     assert folder.length == 6 and folder.name == "seq" and folder.det_path is not None
 
 
+def test_an_avi_without_a_frame_rate_is_not_said_to_have_one(tmp_path, mot_folder):
+    """A stream header with a rate of 0: FFmpeg says 25 frames/s, which was reported as known."""
+    video = tmp_path / "clip.avi"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (W, H))
+    for png in sorted((mot_folder / "img1").glob("*.png")):
+        wr.write(cv2.imread(str(png)))
+    wr.release()
+    assert open_sequence(video).fps_known
+    data = bytearray(video.read_bytes())
+    at = data.find(b"strh")
+    assert data[at + 8:at + 12] == b"vids"
+    data[at + 32:at + 36] = bytes(4)                    # dwRate
+    video.write_bytes(bytes(data))
+    seq = open_sequence(video)
+    assert not seq.fps_known and seq.fps == 25
+
+
 def test_img1_given_as_a_relative_path_is_named_by_its_sequence(mot_folder, monkeypatch):
     monkeypatch.chdir(mot_folder)
     assert open_sequence("img1").name == mot_folder.name

@@ -222,8 +222,26 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int, str]:
         turn = round(cap.get(cv2.CAP_PROP_ORIENTATION_META) or 0) % 360
     finally:
         cap.release()
-    known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS
+    known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS and _avi_rate_stated(video)
     return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1), f"turn {turn}°" if turn else ""
+
+
+def _avi_rate_stated(video: Path) -> bool:
+    """False for an AVI whose video stream header gives no frame rate (a rate or scale of 0, which
+    FFmpeg reads as 25 frames/s without a word); True otherwise (other containers too)."""
+    with open(video, "rb") as fh:
+        head = fh.read(1 << 16)
+    if head[:4] != b"RIFF" or head[8:12] != b"AVI ":
+        return True
+    # a stream header: "strh", its size, then fccType ("vids" for video), fccHandler, dwFlags,
+    # wPriority and wLanguage (2 bytes each), dwInitialFrames, dwScale, dwRate
+    at = head.find(b"strh")
+    while at >= 0 and head[at + 8:at + 12] != b"vids":
+        at = head.find(b"strh", at + 4)
+    if at < 0 or at + 36 > len(head):
+        return True
+    scale, rate = (int.from_bytes(head[at + k:at + k + 4], "little") for k in (28, 32))
+    return scale > 0 and rate > 0
 
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:

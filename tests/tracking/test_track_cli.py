@@ -161,3 +161,29 @@ def test_outputs_are_written_all_or_none(run_cli, sample_seq, tmp_path, monkeypa
                            "--video", tmp_path / "ann.mp4")
     assert code == 2 and err.strip() == f"artmotion: error: {older}: cannot write: No space left on device"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res.txt"] and older.read_text() == "older results\n"
+
+
+def test_how_the_scores_were_read_is_said(run_cli, sample_seq, tmp_path):
+    """Scores in [0, 1] are probabilities (a rounding's overshoot of 1e-4 included: one such score
+    turned the whole file to ranks, 9 tracks to 4 in the audit's case); others are ranked, which
+    the summary now says."""
+    from artmotion.io import read_mot
+    from artmotion.tracking.detect import normalise_scores
+
+    s = np.array([0.2, 0.9, 1.0004, -0.0002])
+    assert np.array_equal(normalise_scores(s), [0.2, 0.9, 1.0, 0.0])
+    assert np.array_equal(normalise_scores(100 * np.array([0.2, 0.9, 0.5])), [1 / 6, 5 / 6, 0.5])
+    rows = read_mot(sample_seq / "det" / "det.txt")
+    outs = {}
+    for name, scale in (("kept", 1.0), ("over", 1.0), ("percent", 100.0)):
+        r = rows.copy()
+        r[:, 6] *= scale
+        if name == "over":
+            r[np.argmax(r[:, 6]), 6] = 1.0004
+        det = tmp_path / f"{name}.txt"
+        det.write_text("".join(",".join(f"{v:g}" for v in row[:7]) + ",-1,-1,-1\n" for row in r))
+        code, out, err = run_cli("track", sample_seq, "--det", det, "--out", tmp_path / f"{name}-r.txt")
+        assert code == 0, err
+        assert ("(scores not in [0, 1]: ranked)" in out) == (name == "percent"), out
+        outs[name] = read_mot(tmp_path / f"{name}-r.txt")[:, :6]      # the boxes (scores differ at one)
+    assert np.array_equal(outs["over"], outs["kept"])

@@ -133,7 +133,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
     say it (a folder of images; else 25 is assumed) or says it wrong.
     """
-    from artmotion.tracking.detect import load_detections
+    from artmotion.tracking.detect import read_detections
     from artmotion.tracking.detectors import Detector, check_detector, make_detector
 
     experts = _check_experts(experts)
@@ -149,7 +149,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     det_path = Path(det) if det is not None else seq.det_path
     model = None
     if det_path is not None:
-        dets, source_name = load_detections(det_path), str(det_path)
+        dets, probabilities = read_detections(det_path)
+        source_name = str(det_path) + ("" if probabilities else " (scores not in [0, 1]: ranked)")
         if dets and max(dets) > seq.length and seq.images is not None:
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)

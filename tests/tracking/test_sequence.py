@@ -286,7 +286,7 @@ def test_frames_that_are_not_files_are_errors_not_skipped(tmp_path):
         open_sequence(folder)
     (folder / "000004.jpg").unlink()
     (folder / "000002.jpg").unlink()
-    with pytest.raises(InputError, match=r"frame 2 is missing \(after 000001.jpg comes 000003.jpg\)"):
+    with pytest.raises(InputError, match=r"frame 2 is missing \(after 000001.jpg comes 000003.jpg;"):
         open_sequence(folder)
 
 

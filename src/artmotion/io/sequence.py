@@ -258,13 +258,14 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
         nums = [n for n, _ in numbered if n is not None]  # all of them (the type checker cannot see it)
         if len(set(nums)) != len(nums):
             dup = next(n for n in nums if nums.count(n) > 1)
-            raise InputError(f"two images have frame number {dup}", path=folder)
+            raise InputError(f"two images have frame number {dup} (a frame's number is the last number in its "
+                             "name)", path=folder)
         # frames must be consecutive: a hole means a missing frame
         start = nums[0]
         for k, (n, p) in enumerate(numbered):
             if n != start + k:
-                raise InputError(f"frame {start + k} is missing (after {numbered[k - 1][1].name} comes {p.name})",
-                                 path=folder)
+                raise InputError(f"frame {start + k} is missing (after {numbered[k - 1][1].name} comes {p.name}; a "
+                                 "frame's number is the last number in its name)", path=folder)
         return [p for _, p in numbered]
     bare = [p for n, p in numbered if n is None]
     if len(bare) < len(files):   # a stray image among numbered frames would hide a missing one

@@ -62,6 +62,24 @@ def test_walk_together_and_directions():
     assert not any("person 4" in x.lower() and "together" in x for x in s)
 
 
+def test_a_chain_of_people_walking_side_by_side():
+    """Ten people side by side, each beside the next for 85 frames and the first and last never
+    together: the group had no common frame, its span became the union, and reading members
+    outside their own frames was an IndexError (or, before their first frame, a wrapped index)."""
+    rows = []
+    for k in range(10):
+        f = np.arange(max(1, 1 + 15 * (k - 1)), 101 + 15 * k)
+        rows += box_rows(k + 1, f, 100 + 2 * f + 20 * k, np.full(len(f), 200))
+    tracks = np.array(rows, float)
+    together = [t for t in describe(tracks, image_size=(1200, 600)) if t.verb == "walk together"]
+    assert together
+    for t in together:
+        for m in t.tracks:          # every member is there on every frame of its sentence
+            frames = tracks[tracks[:, 1] == m, 0]
+            assert frames.min() <= t.frames[0] and t.frames[1] <= frames.max(), t.sentence
+        assert t.adjective == "right", t.sentence
+
+
 def test_pairs_left_out_could_never_be_together(monkeypatch):
     """Pairs of tracks far apart or never on one frame are not compared (a long video has many
     tracks); what is said is the same as when every pair is compared. Random walkers, some close."""

@@ -349,7 +349,9 @@ def _approach_runs(
 
 def _groups(walks: list[tuple[int, int, int, int]], overlap: float = 0.7):
     """Join pairwise "together" runs ``(a, b, first, last)`` sharing a track and overlapping in time
-    (intersection over union >= ``overlap``) into groups; yield ``(members, (first, last))``."""
+    (intersection over union >= ``overlap``) into groups; yield ``(members, (first, last))``, the
+    frames when all members walk together. A chain of runs with no such frame (each person beside
+    the next, the first and last never together) yields its runs one by one."""
     parent = list(range(len(walks)))
 
     def find(i):
@@ -371,12 +373,13 @@ def _groups(walks: list[tuple[int, int, int, int]], overlap: float = 0.7):
     for i in range(len(walks)):
         comps.setdefault(find(i), []).append(i)
     for idx in comps.values():
-        members = sorted({t for i in idx for t in walks[i][:2]})
         first = max(walks[i][2] for i in idx)
         last = min(walks[i][3] for i in idx)
         if last - first < 1:
-            first, last = min(walks[i][2] for i in idx), max(walks[i][3] for i in idx)
-        yield members, (first, last)
+            for i in idx:
+                yield sorted(walks[i][:2]), (walks[i][2], walks[i][3])
+            continue
+        yield sorted({t for i in idx for t in walks[i][:2]}), (first, last)
 
 
 # --------------------------------------------------------------------------------------------

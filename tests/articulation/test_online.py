@@ -132,7 +132,7 @@ def test_along_track_filter_is_the_kalman_filter():
     E = X - f.model.predict(s[:, None])
     r2 = 0.002**2
     assert abs(geo - np.sum(-0.5 * (2 * np.log(2 * np.pi * r2)) - 0.5 * (E**2).sum(1) / r2)) < 1e-6 * abs(geo)
-    x = np.array([s[0], s[1] - s[0]])
+    x = np.array([s[1], s[1] - s[0]])          # at the second sample (the loop goes on from the third)
     P = np.array([[r2, r2], [r2, 2 * r2]])
     F = np.array([[1.0, 1.0], [0.0, 1.0]])
     B = np.array([0.5, 1.0])
@@ -180,3 +180,19 @@ def test_estimate_online_refuses_huge_values_and_update_checks_each_sample():
         est.update([1.0, 0, 0, 0])
     est.update(X[10])  # the refused samples left no trace
     assert len(est.X) == 11 and np.all(np.isfinite(est.X))
+
+
+@pytest.mark.parametrize("decimals, n", [(4, 60), (9, 60), (3, 60), (2, 300)])
+def test_a_drawer_along_an_axis_written_with_few_decimals_is_prismatic(decimals, n):
+    """Noise-free positions along the x axis: nothing off the line, so its noise fell to 1e-9 and
+    (1) the filter along the line, started one sample behind, took every later sample for an
+    outlier; (2) the rounding of the positions was scored against that noise. Both called the
+    drawer static with probability 1."""
+    from artmotion.articulation.online import resolution
+
+    s = np.linspace(0.0, 0.4, n)
+    X = np.round(np.c_[0.2 + s, np.full(n, -0.3), np.full(n, 0.1)], decimals)
+    assert resolution(X) == pytest.approx(10.0**-decimals)
+    res = estimate_online(X)
+    assert res.model == "prismatic" and res.probabilities["prismatic"] > 0.99
+    assert resolution(np.random.default_rng(0).random(50)) == 0.0

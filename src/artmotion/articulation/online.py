@@ -18,7 +18,8 @@ Noise from the data, per model. At each configuration fit every model re-fits by
 re-weighted least squares under the Student-t (a plain fit, then two re-weighted ones) and
 estimates ``sigma_j`` as the t-scale of its residuals: a few slips of the gripper are down-weighted
 instead of making every model look impossible. ``noise`` fixes one ``sigma`` for all models (SLAM
-knows its sensor); ``noise_floor`` bounds the estimate from below.
+knows its sensor); ``noise_floor`` bounds the estimate from below, and so does the rounding of
+positions a log wrote with few decimals (:func:`resolution`).
 
 Score (BIC over effective samples):
 
@@ -153,6 +154,20 @@ def curvature_occam(khat: float, sk: float, radius_range: tuple[float, float], m
     return float(math.log(max(float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(rho))), 1e-300)))
 
 
+def resolution(X: np.ndarray, digits: int = 12) -> float:
+    """The step of the decimal grid that every value of ``X`` lies on (``10**-d`` for the fewest
+    decimals ``d <= digits`` that write them all; 0 when none does): values a log wrote with few
+    decimals carry at least their rounding as noise."""
+    X = np.asarray(X, dtype=float).ravel()
+    if not len(X):
+        return 0.0
+    for d in range(digits + 1):
+        scaled = X * 10.0**d
+        if np.abs(scaled - np.round(scaled)).max() <= 1e-6 + 1e-15 * float(np.abs(scaled).max()):  # + float error
+            return 10.0**-d
+    return 0.0
+
+
 class _ModelFilter:
     """One candidate model's evidence: a fitted configuration, its noise, and a Kalman filter on
     the position *along* the model's manifold.
@@ -229,10 +244,11 @@ class _ModelFilter:
         self.P = np.zeros((self.dof, o, o))
         r2 = self.sigma_along**2
         for j in range(self.dof):
-            # conditioned on the first samples: position (and velocity) from them, the noise's spread
+            # conditioned on the first two samples: at the second one, with the velocity between
+            # them (the loop below goes on from the third), the noise's spread
             x = np.zeros(o)
             P = np.eye(o) * 1e6 * (r2 + float(np.ptp(S[:, j])) ** 2 + 1e-300)
-            x[0] = S[0, j]
+            x[0] = S[min(1, n - 1), j]
             P[0, 0] = r2
             if o > 1 and n > 1:
                 dt = max(float(T[1] - T[0]), 1e-300)
@@ -676,8 +692,12 @@ class OnlineEstimator:
         return autocorrelation_time(f.residuals[:, : self.dim])
 
     def _floor(self, X: np.ndarray) -> float:
-        """Least noise std: ``noise_floor``, and a relative 1e-9 of the data so that ``sigma^2 > 0``."""
-        return max(self.noise_floor, 1e-9 * max(float(np.ptp(X, axis=0).max()), float(np.abs(X).max())), 1e-100)
+        """Least noise std: ``noise_floor``; the rounding of positions written with few decimals
+        (:func:`resolution` ``/ sqrt(12)``, a uniform error over one step: noise-free positions of a
+        drawer along an axis, printed to 4 decimals, were scored against a noise of 1e-9 and called
+        static); and a relative 1e-9 of the data so that ``sigma^2 > 0``."""
+        return max(self.noise_floor, resolution(X) / math.sqrt(12.0),
+                   1e-9 * max(float(np.ptp(X, axis=0).max()), float(np.abs(X).max())), 1e-100)
 
     def _fit_all(self):
         X = self.X

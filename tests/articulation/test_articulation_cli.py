@@ -45,6 +45,26 @@ def test_fit_summary_and_time_column_with_header(tmp_path, run_cli):
     assert json.loads(out)["time_column"] is True
 
 
+def test_the_header_names_the_columns(tmp_path, run_cli):
+    """The header decides which column is which, in any order and with units: 'x,y,z,t' took x for
+    the time (four columns) and 'time_s,x,y' took the time for x, each a confident wrong answer."""
+    X = _arc()
+    t = 1000 + np.arange(len(X)) * 0.05
+    want = None
+    for header, cols in (("t,x,y,z", [t, *X.T]), ("x,y,z,t", [*X.T, t]), ("time_s,z_m,y_m,x_m", [t, *X.T[::-1]]),
+                         ("y,x,z", [X[:, 1], X[:, 0], X[:, 2]])):
+        p = _write(tmp_path / "door.csv", np.column_stack(cols), header=header, sep=",")
+        code, out, err = run_cli("articulation", "fit", p, "--json")
+        assert code == 0, err
+        res = json.loads(out)
+        assert res["model"] == "revolute" and res["time_column"] == ("t" in header), header
+        centre = res["configuration"]["centre"]
+        assert want is None or np.allclose(centre, want, atol=1e-9), header
+        want = centre
+    code, _, err = run_cli("articulation", "fit", p, "--time")
+    assert code == 2 and "names no time column, but --time" in err
+
+
 def test_fit_2d_prismatic_and_pose(tmp_path, run_cli):
     n = 100
     rng = np.random.default_rng(1)
@@ -83,6 +103,10 @@ def test_too_few_samples_is_undecided(tmp_path, run_cli):
     ("0;0;0\n;0.1;0.2\n", "f.txt:2: empty field"),
     ("0 0 0\n1_0 1 1\n", "f.txt:2: not a number"),     # Python's float() reads 1_0 as ten
     ("0.3x 0 0\n0 0 0\n1 1 1\n", "f.txt:1: not a number"),  # a damaged first row, not a header to skip
+    ("px,py,pz\n0,0,0\n1,1,1\n", "f.txt:1: header: unknown column name 'px'"),
+    ("t,x,time\n0,0,0\n1,1,1\n", "f.txt:1: header: two time columns"),
+    ("x,x,y\n0,0,0\n1,1,1\n", "f.txt:1: header: a column named twice"),
+    ("x,z\n0,0\n1,1\n", "f.txt:1: header: columns x, z: expected"),
 ])
 def test_bad_input_is_one_line(tmp_path, run_cli, content, needle):
     p = tmp_path / "f.txt"

@@ -5,13 +5,16 @@ A trajectory file has one sample per row, whitespace- or comma-separated:
 * ``x y`` (2-D point), ``x y z`` (3-D point) or ``x y z qx qy qz qw`` (6-D pose, unit quaternion in
   ``x, y, z, w`` order);
 * optionally a leading time column. It is taken as time when ``time=True`` (``--time``), when a
-  header row names the first column ``t``, ``time``, ``timestamp`` or ``stamp``, or when the row
-  has 4 or 8 columns (which only a time column explains). With ``time=False`` (``--no-time``) a
-  4- or 8-column file is an error. Without a time column samples are one time unit apart.
+  header row names a time column, or when the row has 4 or 8 columns (which only a time column
+  explains). With ``time=False`` (``--no-time``) a 4- or 8-column file is an error. Without a time
+  column samples are one time unit apart.
 
-Blank lines and lines starting with ``#`` are skipped; one header row (any non-numeric first row)
-is allowed. Values must be finite, coordinates within ``±1e12`` and times within ``±1e15``. Every
-error names the file and line.
+Blank lines and lines starting with ``#`` are skipped. One header row is allowed; its names decide
+the columns, in any order: ``x``, ``y``, ``z``, ``qx``, ``qy``, ``qz``, ``qw`` and a time column
+(``t``, ``time``, ``timestamp``, ``stamp``, ``sec``, ``secs``, ``seconds``), each name possibly
+followed by a unit (``time_s``, ``x_m``). A header with any other name is an error (a column taken
+for another one gives a confident wrong answer). Values must be finite, coordinates within
+``±1e12`` and times within ``±1e15``. Every error names the file and line.
 """
 
 from __future__ import annotations
@@ -52,6 +55,28 @@ class Trajectory:
         return "pose" if self.quats is not None else f"point{self.points.shape[1]}d"
 
 
+_COORDS = ("x", "y", "z", "qx", "qy", "qz", "qw")
+
+
+def _header_columns(header: list[str], path, line: int) -> tuple[int | None, list[int]]:
+    """The time column's index (``None``: none) and the coordinate columns' indices in the order
+    ``x y [z] [qx qy qz qw]``, from a header's names (a unit after a name is ignored)."""
+    names = [re.sub(r"[^a-z].*", "", h) for h in header]          # the letters before a unit
+    times = [i for i, n in enumerate(names) if n in _TIME_NAMES]
+    where = {n: i for i, n in enumerate(names) if n in _COORDS}
+    unknown = [header[i] for i, n in enumerate(names) if n not in _TIME_NAMES and n not in _COORDS]
+    if unknown or len(times) > 1 or len(where) + len(times) != len(names):
+        what = (f"unknown column name {unknown[0]!r}" if unknown else
+                "two time columns" if len(times) > 1 else "a column named twice")
+        raise InputError(f"header: {what} (columns are named x, y, z, qx, qy, qz, qw and a time column t or "
+                         "time, each possibly with a unit: time_s)", path=path, line=line)
+    for wanted in (_COORDS[:2], _COORDS[:3], _COORDS):
+        if set(where) == set(wanted):
+            return (times[0] if times else None), [where[n] for n in wanted]
+    raise InputError(f"header: columns {', '.join(sorted(where, key=_COORDS.index))}: expected x, y; x, y, z; or "
+                     "x, y, z, qx, qy, qz, qw (and a time column)", path=path, line=line)
+
+
 def _is_number(text: str) -> bool:
     try:
         number(text)
@@ -67,6 +92,7 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
     rows: list[list[float]] = []
     line_list: list[int] = []
     header = None
+    header_line = 0
     ncol = None
     for no, raw in enumerate(text.splitlines(), start=1):
         s = raw.strip()
@@ -80,6 +106,7 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         except ValueError:
             if not rows and header is None and not any(_is_number(t) for t in tok):
                 header = [t.lower() for t in tok]   # names only: a row with a number in it is a bad row
+                header_line = no
                 continue
             raise InputError(f"not a number in row: {s[:60]!r}", path=path, line=no) from None
         if ncol is None:
@@ -94,14 +121,22 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         line_list.append(no)
     if not rows:
         raise InputError("no samples", path=path)
-    has_time = time
-    if has_time is None:
-        has_time = (header is not None and header[0] in _TIME_NAMES) or ncol in (4, 8)
     data = np.array(rows, dtype=float)
     lines = np.array(line_list)
     tcol = None
-    if has_time:
-        tcol, data = data[:, 0], data[:, 1:]
+    if header is not None:
+        t_at, coords = _header_columns(header, path, header_line)
+        if time is not None and time != (t_at is not None):
+            raise InputError(f"the header {'names no' if time else 'names a'} time column, but "
+                             f"{'--time' if time else '--no-time'} was given", path=path, line=header_line)
+        if t_at is not None:
+            tcol = data[:, t_at]
+        data = data[:, coords]
+        has_time = t_at is not None
+    else:
+        has_time = time if time is not None else ncol in (4, 8)
+        if has_time:
+            tcol, data = data[:, 0], data[:, 1:]
     width = data.shape[1]
     if width not in (2, 3, 7):
         what = "after the time column " if has_time else ""

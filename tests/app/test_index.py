@@ -68,6 +68,10 @@ def test_track_and_video_filters(index):
     assert index.search("exits", video="square")[0].sentence.startswith("Person 2 vanishes")
     assert index.search("walk together")[0].video == "square"
     assert index.search("moves left")[0].adjective == "left and downwards"
+    # a video by its source too (two videos may share a name); one the index lacks is an error
+    assert [h.video for h in index.search("exits", video="/videos/square")] == ["square"]
+    with pytest.raises(InputError, match="no video 'sqare' in the index"):
+        index.search("exits", video="sqare")
 
 
 def test_fulltext_fallback_and_empty(index):

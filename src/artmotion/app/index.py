@@ -279,7 +279,9 @@ class EventIndex:
 
         A query the parser understands whole (subject, track id, verb, direction) is answered by
         structured matching alone; words it does not know send it to full-text search when the
-        structured match finds nothing.
+        structured match finds nothing. ``video``: only the videos of that name, or of that source
+        (as ``index list`` shows it, which tells apart two videos of one name); a video the index
+        does not hold is an error, not "no match".
         """
         if not isinstance(text, str):
             raise InputError(f"a query must be text, got {type(text).__name__}")
@@ -290,6 +292,11 @@ class EventIndex:
 
             limit = check_range("limit", limit, 1, 10**9, integer=True)
         q = parse_query(text)
+        with self._errors():
+            known = video is None or self.conn.execute(
+                "SELECT 1 FROM videos WHERE name = ? OR source_path = ? LIMIT 1", (video, video)).fetchone()
+        if not known:
+            raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)", path=self.path)
         with self._errors():
             hits = self._structured(q, video) if q.structured else []
             if not hits and (q.unknown or not q.structured):
@@ -303,8 +310,8 @@ class EventIndex:
             " s.frame_end, s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE 1=1"
         )
         if video is not None:
-            sql += " AND v.name = ?"
-            params = (video,) + params
+            sql += " AND (v.name = ? OR v.source_path = ?)"
+            params = (video, video) + params
         rows = self.conn.execute(sql + where, params).fetchall()
         for row in rows:   # SQLite keeps whatever a column was given: a damaged index, not a wrong answer
             if not isinstance(row[3], str) or any(type(f) is not int and f is not None for f in row[8:10]):

@@ -12,7 +12,7 @@ row per instrument per frame:
   towards ``+y`` (image coordinates: x right, y down).
 
 A predictions file has the header ``frame,track,x,y,scale,angle,score``: ``track`` is a persistent
-identity (a whole number ``>= 0``) and ``score`` any finite number.
+identity (a whole number ``>= 0``) and ``score`` a confidence in ``[0, 1]``.
 
 Blank lines are skipped. Every problem -- a missing, unknown or repeated column, a row with the
 wrong number of fields, a value that is not a finite number, a frame, tool or track that is not a

@@ -154,7 +154,7 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
 
 def search_cmd(
     query: str = typer.Argument(..., help='What to find, e.g. "person exits left" or "person 3 merges".'),
-    video: Optional[str] = typer.Option(None, "--video", help="Only this video: its name, or its source (as index list shows it)."),
+    video: Optional[str] = typer.Option(None, "--video", help="Only this video: its name or its source (index list)."),
     limit: int = typer.Option(20, "--limit", min=1),
     as_json: bool = typer.Option(False, "--json", help="Print the hits as JSON."),
     db: Optional[Path] = _db_option(),

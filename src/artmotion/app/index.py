@@ -215,6 +215,8 @@ class EventIndex:
         file, a read-only one, a full disk)."""
         try:
             yield
+        except InputError:
+            raise                   # (a ValueError too) already said what is wrong
         except (sqlite3.DatabaseError, ValueError, TypeError) as exc:
             # ValueError, TypeError: text that is not UTF-8, a column that is not the JSON it should be
             msg = str(exc) if isinstance(exc, sqlite3.DatabaseError) else f"unreadable contents: {type(exc).__name__}"
@@ -293,11 +295,10 @@ class EventIndex:
             limit = check_range("limit", limit, 1, 10**9, integer=True)
         q = parse_query(text)
         with self._errors():
-            known = video is None or self.conn.execute(
-                "SELECT 1 FROM videos WHERE name = ? OR source_path = ? LIMIT 1", (video, video)).fetchone()
-        if not known:
-            raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)", path=self.path)
-        with self._errors():
+            if video is not None and not self.conn.execute(
+                    "SELECT 1 FROM videos WHERE name = ? OR source_path = ? LIMIT 1", (video, video)).fetchone():
+                raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)",
+                                 path=self.path)
             hits = self._structured(q, video) if q.structured else []
             if not hits and (q.unknown or not q.structured):
                 hits = self._fulltext(text, video)

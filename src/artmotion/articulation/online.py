@@ -452,16 +452,9 @@ class OnlineEstimator:
         confirm_static: bool = True,
         hold: bool = True,
     ):
-        if min_samples < 3:
-            raise InputError("min_samples must be at least 3")
         check_range("min_samples", min_samples, 3, 10**9, integer=True)
-        if not 0.0 < threshold < 1.0:
-            raise InputError("threshold must lie in (0, 1)")
-        if not refit_growth > 1.0:
-            raise InputError("refit_growth must exceed 1")
+        check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("refit_growth", refit_growth, 1.0, 1e6, lo_open=True)
-        if not temperature > 0.0:
-            raise InputError("temperature must be positive")
         check_range("temperature", temperature, 0.0, 1e3, lo_open=True)
         models = [models] if isinstance(models, str) else list(models)
         if not models or any(not isinstance(m, str) or m not in POINT_MODELS for m in models) \

@@ -136,13 +136,12 @@ def factorize(tracks: np.ndarray, method: str = "auto") -> tuple[np.ndarray, np.
         try:
             A = np.linalg.inv(np.vstack([Mh[[0, F, 2 * F]], b]))
         except np.linalg.LinAlgError:  # a degenerate gauge: the first frame's points serve as shape
-            A = np.full((4, 4), np.nan)
-    if np.all(np.isfinite(A)):
+            A = None
+    shape = None
+    if A is not None and np.all(np.isfinite(A)):
         S = np.linalg.solve(A, Sh)
         shape = (S[:3] / S[3]).T
-    else:
-        shape = np.full((tracks.shape[1], 3), np.nan)
-    if not np.all(np.isfinite(shape)):
+    if shape is None or not np.all(np.isfinite(shape)):
         shape = tracks[0].copy()
     # Every frame's motion from the factorised shape by orthogonal Procrustes (projects M's rows
     # onto SO(3)); if the factorisation was degenerate the first frame's points serve as shape.

@@ -110,12 +110,16 @@ def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.P
         check_can_create_in(path.parent)
 
 
+def _after(name: str, tmp: Path, path: Path) -> str | None:
+    """The file ``name`` with the temporary ``tmp`` it lies in (or is) named ``path`` instead;
+    ``None`` when it is not in ``tmp`` (a message never shows a temporary name)."""
+    return str(path) + name[len(str(tmp)):] if name.startswith(str(tmp)) else None
+
+
 def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
-    """``exc`` naming ``path`` where it names the temporary ``tmp`` (a message never shows a
-    temporary name)."""
-    if exc.path is None or not exc.path.startswith(str(tmp)):
-        return exc
-    return InputError(exc.reason, path=str(path) + exc.path[len(str(tmp)):], line=exc.line)
+    """``exc`` naming ``path`` where it names the temporary ``tmp``."""
+    where = None if exc.path is None else _after(exc.path, tmp, path)
+    return exc if where is None else InputError(exc.reason, path=where, line=exc.line)
 
 
 def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path]) -> Path:
@@ -172,7 +176,7 @@ def _undone_on_failure(path: Path, made: list[Path], folders: list[Path]) -> Ite
         _discard(made, folders)
         if not _ours(exc, [*made, path]):
             raise
-        where = Path(str(exc.filename).replace(str(made[0]), str(path), 1)) if exc.filename and made else path
+        where = (_after(str(exc.filename), made[0], path) if exc.filename and made else None) or path
         raise InputError(f"cannot write: {exc.strerror or exc}", path=where) from exc
     except BaseException:
         _discard(made, folders)

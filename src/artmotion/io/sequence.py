@@ -57,7 +57,7 @@ class Sequence:
 
     def __init__(self, path: Path, name: str, fps: float, width: int, height: int, length: int,
                  images: list[Path] | None = None, video: Path | None = None,
-                 det_path: Path | None = None, gt_path: Path | None = None):
+                 det_path: Path | None = None, gt_path: Path | None = None, orientation: str = ""):
         self.path = path
         self.name = name
         self.fps = float(fps)
@@ -76,7 +76,7 @@ class Sequence:
         self.length_from: Path | None = None
         #: what the input's orientation tag asks a viewer to do with the frames (``""``: nothing),
         #: e.g. ``"turn 90°"``; artmotion reads them as stored (boxes are in stored pixels)
-        self.orientation = ""
+        self.orientation = orientation
 
     def __len__(self) -> int:
         return self.length
@@ -365,9 +365,9 @@ def _open_mot_folder(folder: Path) -> Sequence:
                              path=img_dir)
         w, h, turn = _image_size(images[0])
         _check_size(info, ini, w, h, images[0])
-        seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt)
+        seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt,
+                       orientation=turn)
         seq.fps_known = known
-        seq.orientation = turn
         return seq
     videos = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
     if not videos:
@@ -381,11 +381,10 @@ def _open_mot_folder(folder: Path) -> Sequence:
     if length is not None and exact and length != count:
         raise InputError(f"seqinfo.ini says {length} frames but {videos[0].name} has {count}", path=ini)
     seq = Sequence(folder, name, fps if known else (vfps or DEFAULT_FPS), w, h, length or count, video=videos[0],
-                   det_path=det, gt_path=gt)
+                   det_path=det, gt_path=gt, orientation=turn)
     seq.fps_known = known or vfps is not None
     seq.length_exact = exact or length is not None
     seq.length_from = ini if length is not None else None
-    seq.orientation = turn
     return seq
 
 
@@ -426,9 +425,8 @@ def _open_image_folder(folder: Path) -> Sequence:
     fps = _num(_read_seqinfo(ini), "framerate", ini) if ini.is_file() else None
     name = folder.name if folder.name != "img1" else parent.resolve().name or folder.name
     seq = Sequence(folder, name, fps or DEFAULT_FPS, w, h,
-                   len(images), images=images, det_path=det, gt_path=gt)
+                   len(images), images=images, det_path=det, gt_path=gt, orientation=turn)
     seq.fps_known = fps is not None
-    seq.orientation = turn
     return seq
 
 
@@ -436,7 +434,7 @@ def _open_video(video: Path, name: str | None = None, folder: Path | None = None
     fps, w, h, count, turn = _probe_video(video)
     base = folder or video.parent
     seq = Sequence(video, name or video.stem, fps or DEFAULT_FPS, w, h, count, video=video,
-                   det_path=_companion(base / "det" / "det.txt"), gt_path=_companion(base / "gt" / "gt.txt"))
+                   det_path=_companion(base / "det" / "det.txt"), gt_path=_companion(base / "gt" / "gt.txt"),
+                   orientation=turn)
     seq.fps_known = fps is not None
-    seq.orientation = turn
     return seq

@@ -27,6 +27,8 @@ from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.errors import InputError, check_range, check_seed
 
+__all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
+
 #: most moving parts the part search looks for, and the largest focal length (pixels): the
 #: ranges the command line (``articulation video``) takes
 MAX_PARTS = 20
@@ -39,8 +41,6 @@ def _check_options(focal, max_parts, seed) -> None:
         check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True)
     check_range("max_parts", max_parts, 1, MAX_PARTS, integer=True)
     check_seed(seed, "seed")
-
-__all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
 
 @dataclass

@@ -93,7 +93,6 @@ class PairedSparse:
             dl.fit(Z)
         D = dl.components_
         self.dx_ = X.shape[1]
-        self.dy_ = Y.shape[1]
         self.U_, self.V_ = D[:, : self.dx_].copy(), D[:, self.dx_ :].copy()  # atoms as rows
         self.gram_u_, self.gram_v_ = self.U_ @ self.U_.T, self.V_ @ self.V_.T
         return self

@@ -70,6 +70,31 @@ def test_an_avi_without_a_frame_rate_is_not_said_to_have_one(tmp_path, mot_folde
     assert not seq.fps_known and seq.fps == 25
 
 
+@pytest.mark.parametrize("damage", ["sample duration", "time scale"])
+def test_an_mp4_without_a_frame_rate_is_not_said_to_have_one(tmp_path, mot_folder, damage):
+    """A sample of duration 0 in the time-to-sample table, or a media time scale of 0: FFmpeg makes
+    up a rate (0.83 frames/s for a 25 frames/s clip), which was reported as known."""
+    video = tmp_path / "clip.mp4"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (W, H))
+    for png in sorted((mot_folder / "img1").glob("*.png")):
+        wr.write(cv2.imread(str(png)))
+    wr.release()
+    seq = open_sequence(video)
+    assert seq.fps_known and seq.fps == pytest.approx(10.0)
+    data = bytearray(video.read_bytes())
+    if damage == "sample duration":
+        at = data.find(b"stts")                             # version/flags, entry count, then (count, delta)
+        assert int.from_bytes(data[at + 8:at + 12], "big") >= 1
+        data[at + 16:at + 20] = bytes(4)
+    else:
+        at = data.find(b"mdhd")                             # version 0: flags, two times, then the scale
+        assert data[at + 4] == 0
+        data[at + 16:at + 20] = bytes(4)
+    video.write_bytes(bytes(data))
+    seq = open_sequence(video)
+    assert not seq.fps_known and seq.fps == 25
+
+
 def test_img1_given_as_a_relative_path_is_named_by_its_sequence(mot_folder, monkeypatch):
     monkeypatch.chdir(mot_folder)
     assert open_sequence("img1").name == mot_folder.name

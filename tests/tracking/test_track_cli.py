@@ -187,3 +187,15 @@ def test_how_the_scores_were_read_is_said(run_cli, sample_seq, tmp_path):
         assert ("(scores not in [0, 1]: ranked)" in out) == (name == "percent"), out
         outs[name] = read_mot(tmp_path / f"{name}-r.txt")[:, :6]      # the boxes (scores differ at one)
     assert np.array_equal(outs["over"], outs["kept"])
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_a_single_frame_says_why_it_has_no_track(run_cli, tmp_path, n):
+    """One frame cannot confirm a track (two detections do): "0 tracks" alone looked like a failure
+    to see anyone."""
+    frames, truth = moving_blob(n)
+    root = write_mot_folder(tmp_path / "seq", frames, [[k + 1, -1, *box, 0.9] for k, box in enumerate(truth)])
+    code, out, err = run_cli("track", root)
+    assert code == 0, err
+    assert ("a track is confirmed by detections on 2 frames, and the input has 1" in out) == (n == 1)
+    assert ("0 tracks" in out) == (n == 1)

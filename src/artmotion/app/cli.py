@@ -89,6 +89,7 @@ def run_cmd(
     import sys
 
     from artmotion.app.pipeline import run_pipeline
+    from artmotion.tracking.api import too_short
 
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     if db is not None and out is not None and Path(os.path.realpath(out)) in Path(os.path.realpath(db)).parents:
@@ -98,7 +99,7 @@ def run_cmd(
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
-               f" in {res.seconds:.1f} s")
+               f" in {res.seconds:.1f} s{too_short(res.num_tracks, res.frames)}")
     for s in res.sentences[:10]:
         typer.echo(f"  {s['sentence']}")
     if len(res.sentences) > 10:

@@ -47,6 +47,8 @@ class RunResult:
     seconds: float
     #: whether the pose model applied to the run's crops (:func:`track_poses`), if one ran
     pose: dict | None = None
+    #: frames of the input
+    frames: int = 0
 
     @property
     def report(self) -> Path:
@@ -221,7 +223,7 @@ def run_pipeline(
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
-                     manifest["seconds"], manifest.get("pose"))
+                     manifest["seconds"], manifest.get("pose"), seq.length)
 
 
 #: the files of a run folder

@@ -222,7 +222,7 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int, str]:
         turn = round(cap.get(cv2.CAP_PROP_ORIENTATION_META) or 0) % 360
     finally:
         cap.release()
-    known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS and _avi_rate_stated(video)
+    known = np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS and _avi_rate_stated(video) and _mp4_rate_stated(video)
     return (float(fps) if known else None), img.shape[1], img.shape[0], max(count, 1), f"turn {turn}°" if turn else ""
 
 
@@ -242,6 +242,65 @@ def _avi_rate_stated(video: Path) -> bool:
         return True
     scale, rate = (int.from_bytes(head[at + k:at + k + 4], "little") for k in (28, 32))
     return scale > 0 and rate > 0
+
+
+def _mp4_rate_stated(video: Path) -> bool:
+    """False for an MP4 / QuickTime file whose video track gives no frame rate: a media time scale
+    of 0 or a sample of duration 0 in its time-to-sample table (FFmpeg then makes up a rate from what
+    is left, e.g. 0.83 frames/s for a 25 frames/s clip); True otherwise (other containers too)."""
+
+    def boxes(fh, start: int, end: int):
+        """(type, offset of the body, end) of each box from start to end (ISO/IEC 14496-12 Sec. 4.2)."""
+        at = start
+        while at + 8 <= end:
+            fh.seek(at)
+            head = fh.read(16)
+            if len(head) < 8:
+                return
+            size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            body = at + 8
+            if size == 1 and len(head) == 16:                  # a 64-bit size follows the type
+                size, body = int.from_bytes(head[8:16], "big"), at + 16
+            elif size == 0:                                    # the box runs to the end of the file
+                size = end - at
+            if size < body - at or at + size > end:
+                return                                         # damaged: not this check's business
+            yield kind, body, at + size
+            at += size
+
+    def child(fh, parent: tuple[int, int], kind: bytes) -> list[tuple[int, int]]:
+        return [(b, e) for k, b, e in boxes(fh, *parent) if k == kind]
+
+    with open(video, "rb") as fh:
+        end = fh.seek(0, os.SEEK_END)
+        fh.seek(4)
+        if fh.read(4) not in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip"):
+            return True
+        for moov in child(fh, (0, end), b"moov"):
+            for trak in child(fh, moov, b"trak"):
+                for mdia in child(fh, trak, b"mdia"):
+                    hdlr = child(fh, mdia, b"hdlr")
+                    if not hdlr:
+                        continue
+                    fh.seek(hdlr[0][0] + 8)                    # version/flags, pre_defined, handler_type
+                    if fh.read(4) != b"vide":
+                        continue
+                    for b, _ in child(fh, mdia, b"mdhd"):      # version 1 has 64-bit times before the scale
+                        fh.seek(b)
+                        version = fh.read(1)
+                        fh.seek(b + (20 if version == b"\x01" else 12))
+                        if int.from_bytes(fh.read(4), "big") == 0:
+                            return False
+                    for minf in child(fh, mdia, b"minf"):
+                        for stbl in child(fh, minf, b"stbl"):
+                            for b, e in child(fh, stbl, b"stts"):
+                                fh.seek(b + 4)
+                                n = int.from_bytes(fh.read(4), "big")
+                                table = fh.read(8 * min(n, (e - b - 8) // 8))
+                                deltas = (int.from_bytes(table[k + 4:k + 8], "big") for k in range(0, len(table), 8))
+                                if any(d == 0 for d in deltas):
+                                    return False
+    return True
 
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:

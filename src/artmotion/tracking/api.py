@@ -45,6 +45,15 @@ class TrackResult:
         return len(set(self.tracks[:, 1].tolist()))
 
 
+def too_short(num_tracks: int, frames: int, config: TrackerConfig | None = None) -> str:
+    """Why there is no track when the input is shorter than the detections that confirm one (``""``
+    otherwise): a summary's "0 tracks" then says so instead of nothing."""
+    confirm = (config or TrackerConfig()).confirm_hits
+    if num_tracks or frames >= confirm:
+        return ""
+    return f": a track is confirmed by detections on {confirm} frames, and the input has {frames}"
+
+
 def _work_reduce(width: int, height: int) -> int:
     """How many times smaller (1, 2, 4 or 8) the images the tracker looks at are than the frames:
     the largest power of two that keeps at least 240 pixels on the short side."""

@@ -66,6 +66,7 @@ def track_command(
     from artmotion.errors import InputError
     from artmotion.io import atomic_path, check_writable, write_events, write_mot
     from artmotion.tracking import DEFAULT_EXPERTS, open_sequence, track
+    from artmotion.tracking.api import too_short
 
     if video and not video.lower().endswith(".mp4"):
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
@@ -96,7 +97,7 @@ def track_command(
                f"detections: {res.detector}, experts: {','.join(res.experts)}"
                f"{' (online)' if online else ''}")
     typer.echo(f"{res.num_tracks} tracks, {len(res.tracks)} boxes, {len(res.events)} events"
-               f"{' (' + kinds + ')' if kinds else ''}")
+               f"{' (' + kinds + ')' if kinds else ''}{too_short(res.num_tracks, res.frames)}")
     typer.echo(f"{res.fps:.1f} frames/s ({res.seconds:.2f} s)")
     for what, path in (("tracks", out), ("events", events), ("video", video)):
         if path:

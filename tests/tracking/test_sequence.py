@@ -95,6 +95,27 @@ def test_an_mp4_without_a_frame_rate_is_not_said_to_have_one(tmp_path, mot_folde
     assert not seq.fps_known and seq.fps == 25
 
 
+def test_a_folder_of_frames_with_a_bad_frame_is_an_error_even_beside_a_video(tmp_path, mot_folder):
+    """A missing frame made the folder's one video (another take) be read instead, without a word;
+    a folder holding only a video is still read as that video."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for png in sorted((mot_folder / "img1").glob("*.png")):
+        (frames / png.name).write_bytes(png.read_bytes())
+    wr = cv2.VideoWriter(str(frames / "other_take.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (W, H))
+    for _ in range(3):
+        wr.write(np.zeros((H, W, 3), np.uint8))
+    wr.release()
+    assert open_sequence(frames).length == 6
+    (frames / "000003.png").unlink()
+    with pytest.raises(InputError, match="frame 3 is missing"):
+        open_sequence(frames)
+    for png in frames.glob("*.png"):
+        png.unlink()
+    seq = open_sequence(frames)
+    assert seq.video == frames / "other_take.avi" and seq.name == "frames"
+
+
 def test_img1_given_as_a_relative_path_is_named_by_its_sequence(mot_folder, monkeypatch):
     monkeypatch.chdir(mot_folder)
     assert open_sequence("img1").name == mot_folder.name

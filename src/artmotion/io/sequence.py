@@ -457,13 +457,12 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
     if path.is_dir():
         if os.path.lexists(path / "seqinfo.ini"):     # (a folder or a pipe of that name: an error, not ignored)
             return _open_mot_folder(path)
-        try:
-            return _open_image_folder(path)
-        except InputError:
-            videos = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
-            if len(videos) == 1:
-                return _open_video(videos[0], name=path.name, folder=path)
-            raise
+        # a folder of frames, or a folder holding one video and no image: a bad frame among images is
+        # an error, not a reason to read a video that lies beside them instead
+        videos = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
+        if len(videos) == 1 and not any(p.suffix.lower() in IMAGE_EXTS for p in path.iterdir()):
+            return _open_video(videos[0], name=path.name, folder=path)
+        return _open_image_folder(path)
     if path.suffix.lower() in IMAGE_EXTS:
         raise InputError("a single image is not a sequence; give its folder", path=path)
     if path.suffix.lower() not in VIDEO_EXTS:

@@ -157,13 +157,15 @@ def curvature_occam(khat: float, sk: float, radius_range: tuple[float, float], m
 def resolution(X: np.ndarray, digits: int = 12) -> float:
     """The step of the decimal grid that every value of ``X`` lies on (``10**-d`` for the fewest
     decimals ``d <= digits`` that write them all; 0 when none does): values a log wrote with few
-    decimals carry at least their rounding as noise."""
+    decimals carry at least their rounding as noise. A value is on the grid when it is within the
+    float error of its own size of a grid point (an absolute tolerance put every value below it on
+    the coarsest grid: a track of micrometres in metres got a step of 1 and was called static)."""
     X = np.asarray(X, dtype=float).ravel()
     if not len(X):
         return 0.0
     for d in range(digits + 1):
         scaled = X * 10.0**d
-        if np.abs(scaled - np.round(scaled)).max() <= 1e-6 + 1e-15 * float(np.abs(scaled).max()):  # + float error
+        if np.all(np.abs(scaled - np.round(scaled)) <= 1e-14 * np.abs(scaled)):
             return 10.0**-d
     return 0.0
 
@@ -243,20 +245,29 @@ class _ModelFilter:
         self.x = np.zeros((self.dof, o))
         self.P = np.zeros((self.dof, o, o))
         r2 = self.sigma_along**2
+        # conditioned on the first samples, the loop below going on from the next one: the position
+        # at the second sample (order 1), or the state at sample c - 1 that the first c = order
+        # samples determine (the polynomial through them: position and velocity from two samples at
+        # order 2), with the noise's spread through that polynomial; derivatives that too short a
+        # track leaves open get a vague prior. (A vague prior on every derivative beyond the
+        # velocity, against the noise of a clean track, put the filter's covariance beyond float
+        # precision at orders 4-6.)
+        c = min(max(o, 2), n)
+        D = np.zeros((o, c))
+        if o == 1:
+            D[0, c - 1] = 1.0
+        else:
+            k = min(o, c)
+            h = T[:c] - T[c - 1]
+            V = np.stack([h**i / math.factorial(i) for i in range(k)], axis=1)   # s_i = sum_d V_id x_d
+            D[:k] = np.linalg.solve(V[-k:], np.eye(k)) @ np.eye(k, c, c - k)
         for j in range(self.dof):
-            # conditioned on the first two samples: at the second one, with the velocity between
-            # them (the loop below goes on from the third), the noise's spread
-            x = np.zeros(o)
-            P = np.eye(o) * 1e6 * (r2 + float(np.ptp(S[:, j])) ** 2 + 1e-300)
-            x[0] = S[min(1, n - 1), j]
-            P[0, 0] = r2
-            if o > 1 and n > 1:
-                dt = max(float(T[1] - T[0]), 1e-300)
-                x[1] = (S[1, j] - S[0, j]) / dt
-                P[0, 1] = P[1, 0] = r2 / dt
-                P[1, 1] = 2.0 * r2 / dt**2
+            x = D @ S[:c, j]
+            P = r2 * (D @ D.T)
+            for d in range(min(o, c), o):
+                P[d, d] = 1e6 * (r2 + float(np.ptp(S[:, j])) ** 2 + 1e-300)
             self.x[j], self.P[j] = x, P
-            for k in range(2, n):
+            for k in range(c, n):
                 total += self._step_axis(j, float(S[k, j]), float(T[k] - T[k - 1]))
         return geo, total
 
@@ -287,14 +298,22 @@ class _ModelFilter:
         x = F @ self.x[j]
         P = F @ self.P[j] @ F.T + Q
         y = s - x[0]
-        sv = P[0, 0] + r2
+        sv = max(float(P[0, 0]), 0.0) + r2
         m = y * y / sv
         ll = self._t(m, 1, self._c1) - 0.5 * math.log(sv)
+        r = r2
         if self.nu is not None and m > 1.0:
-            sv = P[0, 0] + r2 * (self.nu + m) / (self.nu + 1.0)
+            r = r2 * (self.nu + m) / (self.nu + 1.0)
+            sv = P[0, 0] + r
         K = P[:, 0] / sv
         self.x[j] = x + K * y
-        self.P[j] = P - np.outer(K, P[0, :])
+        # Joseph's form, (I - K H) P (I - K H)^T + K r K^T: the plain P - K H P lost positive
+        # definiteness at orders 4-6 (vague higher derivatives against a noise-free track's 1e-18)
+        # and the next innovation variance came out negative
+        IKH = np.eye(len(x))
+        IKH[:, 0] -= K
+        P = IKH @ P @ IKH.T + r * np.outer(K, K)
+        self.P[j] = 0.5 * (P + P.T)
         return float(ll)
 
     def step(self, z, dt: float) -> tuple[float, float]:

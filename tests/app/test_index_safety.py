@@ -128,6 +128,22 @@ def test_batch_items_that_share_a_name_get_their_own_folders(tmp_path):
     assert {d.name for d in dirs} == {"v-folder", "v-mov", "v-mp4", "w"}
 
 
+def test_batch_folder_names_are_unique_without_case_and_suffix(tmp_path):
+    """``clip.avi`` and ``clip.AVI`` both got ``clip-avi``; ``x.avi`` got ``x-avi``, the name of a
+    frame folder beside it. Each gets its own folder now, the same whatever the listing order, and
+    items that collide with none keep their names."""
+    for name in ("clip.avi", "clip.AVI", "x.avi", "x.mp4", "Cam.mp4", "cam.mp4", "w.mp4"):
+        (tmp_path / name).write_bytes(b"")
+    (tmp_path / "x-avi").mkdir()
+    items = sorted(tmp_path.iterdir())
+    dirs = item_dirs(items, tmp_path / "out")
+    assert len({d.name.casefold() for d in dirs}) == len(items)
+    assert dict(zip((p.name for p in items), (d.name for d in dirs))) == {
+        "Cam.mp4": "Cam-mp4", "cam.mp4": "cam-mp4-2", "clip.AVI": "clip-avi", "clip.avi": "clip-avi-2",
+        "w.mp4": "w", "x-avi": "x-avi", "x.avi": "x-avi-2", "x.mp4": "x-mp4"}
+    assert item_dirs(items[::-1], tmp_path / "out") == dirs[::-1]
+
+
 def test_unusable_scheduler_address_is_one_line(tmp_path, run_cli, sample_seq):
     shutil.copytree(sample_seq, tmp_path / "archive" / "tud")
     for address in ("not a url", "foo://x"):

@@ -138,6 +138,56 @@ def test_batch_skips_only_runs_it_finished(tmp_path, run_cli):
     assert (out / "a" / "run.json").read_text() == '{"my": "own config"}' and (out / "b" / "run.json").read_text() == ""
 
 
+def test_batch_fails_an_item_whose_folder_holds_another_sources_run(tmp_path):
+    """Two archives batched into one ``--out``, each with an item ``a``: the code before skipped
+    cam2's as "already finished" (runs/a held cam1's run). It fails now, naming the folder and the
+    source it holds (even with ``--force``: that run is not this item's to replace), and the run is
+    kept."""
+    from conftest import SAMPLE
+
+    for cam in ("cam1", "cam2"):
+        small_sequence(SAMPLE, tmp_path / cam / "a", n=5)
+    out = tmp_path / "runs"
+    assert [o.status for o in run_batch(tmp_path / "cam1", out, processes=False).outcomes] == ["done"]
+    manifest = (out / "a" / "run.json").read_bytes()
+    for force in (False, True):
+        [o] = run_batch(tmp_path / "cam2", out, force=force, processes=False).outcomes
+        assert o.status == "failed", o
+        assert o.message == f"{out / 'a'} holds the run of {(tmp_path / 'cam1' / 'a').resolve()}"
+    assert (out / "a" / "run.json").read_bytes() == manifest
+
+
+def test_batch_runs_again_an_item_whose_input_changed(tmp_path):
+    """A recording replaced by a new one of the same name: the code before skipped it as "already
+    finished" (the manifest's fingerprint was not compared); it runs again now, then is skipped."""
+    from conftest import SAMPLE
+
+    seq = small_sequence(SAMPLE, tmp_path / "cam1" / "a", n=5)
+    out = tmp_path / "runs"
+    assert [o.status for o in run_batch(tmp_path / "cam1", out, processes=False).outcomes] == ["done"]
+    before = load_run(out / "a")["fingerprint"]
+    (seq / "img1" / "000001.jpg").write_bytes((seq / "img1" / "000002.jpg").read_bytes())   # a new recording
+    [o] = run_batch(tmp_path / "cam1", out, processes=False).outcomes
+    assert o.status == "done", o
+    assert load_run(out / "a")["fingerprint"] != before
+    [o] = run_batch(tmp_path / "cam1", out, processes=False).outcomes
+    assert o.status == "skipped", o
+
+
+def test_batch_items_whose_folders_would_collide_keep_their_runs(tmp_path):
+    """``clip.avi`` and ``clip.AVI`` both went to ``runs/clip-avi``: both "done", one run lost."""
+    from artmotion.articulation.synthetic import part_video
+
+    archive = tmp_path / "archive"
+    archive.mkdir()
+    part_video(archive / "clip.avi", "revolute", frames=8)
+    part_video(archive / "clip.AVI", "prismatic", frames=8, seed=3)
+    report = run_batch(archive, tmp_path / "runs", processes=False)
+    assert [o.status for o in report.outcomes] == ["done", "done"], report.outcomes
+    sources = {load_run(o.out_dir)["source"] for o in report.outcomes}
+    assert sources == {str((archive / n).resolve()) for n in ("clip.avi", "clip.AVI")}
+
+
 @pytest.mark.parametrize("inside", ["a", "."])
 def test_batch_output_inside_an_item_is_one_line(tmp_path, run_cli, inside):
     """``--out`` inside an item's folder (the other items' runs would land among its frames) or the

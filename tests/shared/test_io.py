@@ -369,3 +369,30 @@ def test_an_inputs_error_inside_an_output_block_names_the_input(tmp_path):
         with atomic_path(tmp_path / "new" / "o.txt") as tmp:
             raise OSError(28, "No space left on device", str(tmp))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_output_folder_made_at_the_same_moment_by_another_process_is_used_and_kept(tmp_path, monkeypatch):
+    """Two of a batch's workers writing into one new --out: both see it missing, one makes it, and
+    the other's mkdir failed ('cannot create output folder: File exists'), failing its item."""
+    import artmotion.io.atomic as atomic
+
+    out = tmp_path / "runs"
+    real = os.path.lexists
+    seen = []
+
+    def racing(p):          # "missing" when looked at; made by the other worker before our mkdir
+        if Path(p) == out and not seen:
+            seen.append(p)
+            out.mkdir()
+            return False
+        return real(p)
+
+    monkeypatch.setattr(atomic.os.path, "lexists", racing)
+    with pytest.raises(RuntimeError):
+        with atomic_write(out / "a.txt") as fh:
+            fh.write("x")
+            raise RuntimeError("the work fails")
+    assert seen and out.is_dir()            # the other worker's folder is not removed
+    with atomic_write(out / "b.txt") as fh:
+        fh.write("y")
+    assert (out / "b.txt").read_text() == "y"

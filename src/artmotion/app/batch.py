@@ -1,8 +1,9 @@
 """Process whole archives on Dask distributed: one pipeline run per sequence or video.
 
 Each item runs in isolation (its failure is caught and listed, it stops nothing else); finished
-items (a ``run.json`` in their output folder) are skipped, so an interrupted batch resumes where
-it stopped. A local cluster is started by default; give a scheduler address to use an existing one.
+items (a ``run.json`` of the same input, unchanged, in their output folder) are skipped, so an
+interrupted batch resumes where it stopped; a run folder holding another input's run fails its
+item. A local cluster is started by default; give a scheduler address to use an existing one.
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from __future__ import annotations
 import os
 import time
 import traceback
+import unicodedata
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,17 +48,36 @@ def item_name(item: Path) -> str:
     return item.stem if item.is_file() else item.name
 
 
+def _fold(name: str) -> str:
+    """A name as a case-insensitive file system compares it (macOS, Windows: ``Clip`` is ``clip``)."""
+    return unicodedata.normalize("NFC", name).casefold()
+
+
 def item_dirs(items: list[Path], out: Path) -> list[Path]:
     """Each item's run folder in ``out``: its name, or, where two items would share a name
-    (``v.mp4`` and ``v.mov``, a folder ``v`` and ``v.avi``), the name with the file's extension."""
-    names = [item_name(it) for it in items]
-    shared = {n for n in names if names.count(n) > 1}
-    dirs = []
-    for it, n in zip(items, names):
-        if n in shared:
+    (``v.mp4`` and ``v.mov``, a folder ``v`` and ``v.avi``), the name with the file's extension.
+
+    Names are compared without case (``clip.avi`` and ``clip.AVI`` on a file system that cannot
+    tell ``clip-avi`` from ``clip-AVI``) and a name so made is checked against the others too
+    (``x.avi`` beside a folder ``x-avi``): it takes ``-2``, ``-3``... until it is free, so no two
+    items share a folder (one's result lost, or reported for the other). The items are taken in
+    sorted order, so the same items always get the same folders; an item whose name is shared
+    with none keeps it (an earlier batch's finished runs are found again)."""
+    names = {it: item_name(it) for it in items}
+    counts = Counter(_fold(n) for n in names.values())
+    shared = {f for f, c in counts.items() if c > 1}
+    taken = set(counts) - shared
+    for it in sorted(names, key=str):
+        n = names[it]
+        if _fold(n) in shared:
             n = f"{n}-{it.suffix.lstrip('.').lower()}" if it.is_file() else f"{n}-folder"
-        dirs.append(out / n)
-    return dirs
+            base, k = n, 1
+            while _fold(n) in taken:
+                k += 1
+                n = f"{base}-{k}"
+            taken.add(_fold(n))
+            names[it] = n
+    return [out / names[it] for it in items]
 
 
 def _check_scheduler(address: str) -> None:
@@ -197,6 +219,19 @@ def _finished_by(out_dir: str, batch: str | None, item: str | None = None) -> It
                        tracks=len(run["track_summary"]), sentences=len(run["sentences"]))
 
 
+def _other_source(out_dir: Path, item: Path) -> str | None:
+    """The source whose finished run ``out_dir`` holds when it is not ``item`` (another archive's
+    video of the same name, batched into the same folder), else ``None``: that run is neither this
+    item's (to skip) nor this batch's to replace."""
+    from artmotion.app.pipeline import load_run
+
+    try:
+        source = load_run(out_dir).get("source")
+    except InputError:
+        return None
+    return source if source is not None and source != str(item.resolve()) else None
+
+
 def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | None = None) -> ItemOutcome:
     """Run the pipeline on one item; never raises (the failure is the outcome).
 
@@ -277,7 +312,11 @@ def run_batch(
     report = BatchReport()
     todo: list[tuple[str, str]] = []
     for item_path, item_out in zip(items, outs):
-        if not force and is_finished(item_out):
+        other = _other_source(item_out, item_path)
+        if other is not None:
+            report.outcomes.append(ItemOutcome(str(item_path), "failed", str(item_out),
+                                               message=f"{item_out} holds the run of {other}"))
+        elif not force and is_finished(item_out, item_path):
             report.outcomes.append(ItemOutcome(str(item_path), "skipped", str(item_out), message="already finished"))
         else:
             todo.append((str(item_path), str(item_out)))

@@ -56,7 +56,12 @@ def _prepare(path: str | os.PathLike, made: list[Path]) -> Path:
     try:
         for folder in reversed(missing):
             made.append(folder)             # (before it exists: see _fresh)
-            os.mkdir(folder)
+            try:
+                os.mkdir(folder)
+            except FileExistsError:
+                made.pop()                  # made at the same moment by another process (a batch's
+                if not folder.is_dir():     # workers writing into one new --out): not ours to remove
+                    raise
     except OSError as exc:
         raise InputError(f"cannot create output folder: {exc.strerror}", path=path.parent) from exc
     return path

@@ -75,6 +75,11 @@ def test_fit_2d_prismatic_and_pose(tmp_path, run_cli):
     code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "pose.txt", pose), "--json")
     res = json.loads(out)
     assert code == 0 and res["model"] == "prismatic" and res["input"] == "pose"
+    # Algorithm 1's options do not apply to a pose track: said, not silently ignored
+    code, out, _ = run_cli("articulation", "fit", tmp_path / "pose.txt", "--order", "3")
+    assert code == 0 and "noise std: " in out and "(--order: options of Algorithm 1's point tracks" in out
+    code, out, _ = run_cli("articulation", "fit", tmp_path / "pose.txt")
+    assert code == 0 and "options of Algorithm 1" not in out
 
 
 def test_constant_trajectory_is_static(tmp_path, run_cli):

@@ -142,3 +142,27 @@ def test_classify_points_refuses_misuse_and_degenerate_bodies():
     flat = np.c_[tracks[0][:, :2], np.zeros(6)]
     assert classify_points(np.stack([flat] * 10)).model == "static"
     assert classify_points(np.stack([flat + [0.1 * k, 0, 0] for k in range(10)])).model == "prismatic"
+
+
+@pytest.mark.parametrize("unit", [1.0, 1000.0])
+def test_pose_tracks_answer_alike_in_metres_and_millimetres(unit):
+    """A fixed noise of 0.005 data units called a drawer written in millimetres 'rigid'; the noise
+    of a pose track is estimated from the track."""
+    from artmotion.articulation.trajectory import fit_poses
+
+    rng = np.random.default_rng(0)
+    n = 200
+    tilt = lambda k: Rot.from_rotvec(rng.normal(0.0, 0.002, (k, 3)))   # noqa: E731 (orientation noise)
+    s = 0.4 * (0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n)))
+    drawer = np.c_[s, np.zeros(n), np.zeros(n)] + rng.normal(0.0, 0.001, (n, 3))
+    a = 1.2 * (0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n)))
+    R = Rot.from_rotvec(np.c_[np.zeros(n), np.zeros(n), a])
+    c = np.array([0.5, 0.0, 0.0])
+    door = R.apply(-c) + c + rng.normal(0.0, 0.001, (n, 3))
+    tumble = Rot.from_rotvec(np.c_[a, 0.5 * a ** 2, np.sin(3 * a)])
+    free = np.c_[s, s ** 2, np.sin(5 * s)] + rng.normal(0.0, 0.001, (n, 3))
+    for P, Rs, truth in ((drawer, tilt(n), "prismatic"), (door, tilt(n) * R, "revolute"),
+                         (free, tilt(n) * tumble, "rigid")):
+        out = fit_poses(P * unit, Rs.as_quat())
+        assert out["model"] == truth, (truth, out["noise"], out["angular_noise"])
+        assert 0.0005 < out["noise"] / unit < 0.002 and 0.001 < out["angular_noise"] < 0.004

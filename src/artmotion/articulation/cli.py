@@ -71,6 +71,13 @@ def fit(
         typer.echo(f"margin over {margin['runner_up']}: {margin['log_odds']:.1f} nats (log-odds)")
     if out.get("noise_per_model"):
         typer.echo("noise std per model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in out["noise_per_model"].items()))
+    if out["input"] == "pose":
+        typer.echo(f"noise std: {_fmt(out['noise'])} (position), {_fmt(out['angular_noise'])} rad (orientation)")
+        unused = [name for name, changed in (("--threshold", threshold != 0.75), ("--order", order != 2),
+                                             ("--radius-range", tuple(radius_range) != (0.05, 1.0))) if changed]
+        if unused:
+            typer.echo(f"  ({', '.join(unused)}: options of Algorithm 1's point tracks; a pose track is classified "
+                       "by its rigid motion, Sec. 4.3.2)")
     for k, v in out.get("configuration", {}).items():
         typer.echo(f"  {k}: {_fmt(v)}")
     if out.get("prediction"):

@@ -159,8 +159,13 @@ def resolution(X: np.ndarray, digits: int = 12) -> float:
     decimals ``d <= digits`` that write them all; 0 when none does): values a log wrote with few
     decimals carry at least their rounding as noise. A value is on the grid when it is within the
     float error of its own size of a grid point (an absolute tolerance put every value below it on
-    the coarsest grid: a track of micrometres in metres got a step of 1 and was called static)."""
-    X = np.asarray(X, dtype=float).ravel()
+    the coarsest grid: a track of micrometres in metres got a step of 1 and was called static).
+    Only the columns that vary count: a constant one says nothing of rounding (an orientation
+    written as the quaternion 0 0 0 1 throughout is not rounded to whole numbers)."""
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 2:
+        X = X[:, np.ptp(X, axis=0) > 0]
+    X = X.ravel()
     if not len(X):
         return 0.0
     for d in range(digits + 1):

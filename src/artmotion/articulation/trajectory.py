@@ -172,21 +172,29 @@ def fit_points(points, time=None, **kwargs) -> dict:
     return out
 
 
-def fit_poses(positions, quats, time=None, noise: float = 0.005, min_samples: int = 7, horizon: int = 5) -> dict:
+def fit_poses(positions, quats, time=None, noise: float | None = None, min_samples: int = 7, horizon: int = 5,
+              noise_floor: float = 0.0) -> dict:
     """Rigid-body classification (4.3.2) of a 6-D pose track, re-run on growing prefixes to tell when
-    the answer settled (``decided_at``: first sample from which every later prefix agrees)."""
-    from artmotion.articulation.rigid import classify_poses
+    the answer settled (``decided_at``: first sample from which every later prefix agrees).
+    ``noise``: the positional noise std (data units); ``None``: estimated from the whole track with
+    the angular noise (:func:`~artmotion.articulation.rigid.pose_noise`), at least ``noise_floor``."""
+    from artmotion.articulation.rigid import classify_poses, pose_noise
 
     P = np.asarray(positions, dtype=float)
     Q = np.asarray(quats, dtype=float)
     n = len(P)
-    base = {"input": "pose", "samples": n, "noise": noise, "probabilities": None, "first_decision": None}
+    angular = None
+    if noise is None and n >= 2:
+        noise, angular = pose_noise(P, Q)
+        noise = max(noise, noise_floor)
+    base = {"input": "pose", "samples": n, "noise": noise, "angular_noise": angular, "probabilities": None,
+            "first_decision": None}
     if n < max(min_samples, 2):
         return {**base, "model": "undecided", "decided_at": None, "configuration": {}, "motion": [], "prediction": []}
-    final = classify_poses(P, Q, noise=noise)
+    final = classify_poses(P, Q, noise=noise, angular_noise=angular)
     step = max(1, n // 200)
     ks = list(range(min_samples, n, step)) + [n]
-    labels = [classify_poses(P[:k], Q[:k], noise=noise).model for k in ks]
+    labels = [classify_poses(P[:k], Q[:k], noise=noise, angular_noise=angular).model for k in ks]
     decided_at = None
     for j in range(len(ks) - 1, -1, -1):
         if labels[j] != final.model:
@@ -217,8 +225,8 @@ def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_
     """Read ``path`` and fit it (points: Algorithm 1; poses: rigid-body classification)."""
     traj = read_trajectory(path, time=time)
     if traj.quats is not None:
-        noise = kwargs.get("noise") or kwargs.get("noise_floor") or 0.005  # rigid bodies: a fixed noise
-        out = fit_poses(traj.points, traj.quats, traj.time, noise=noise, min_samples=min_samples)
+        out = fit_poses(traj.points, traj.quats, traj.time, noise=kwargs.get("noise"), min_samples=min_samples,
+                        noise_floor=kwargs.get("noise_floor") or 0.0)
     else:
         out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)
     out["file"] = str(path)

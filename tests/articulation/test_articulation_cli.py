@@ -104,6 +104,7 @@ def test_too_few_samples_is_undecided(tmp_path, run_cli):
     ("# only a comment\n", "f.txt: no samples"),
     ("0 1 2\nabc 1 2\n", "f.txt:2: not a number"),
     ("0 0 0 0\n0 1 1 1\n", "f.txt:2: time must increase"),
+    ("t x y\n0 0 0\n1e-13 1 1\n", "f.txt:3: time step 1e-13 from the row before"),
     ("0,0,0\n0.1,,0.2\n", "f.txt:2: empty field"),      # not the point (0.1, 0.2): the rest would shift
     ("0;0;0\n;0.1;0.2\n", "f.txt:2: empty field"),
     ("0 0 0\n1_0 1 1\n", "f.txt:2: not a number"),     # Python's float() reads 1_0 as ten

@@ -220,3 +220,21 @@ def test_analyze_video_refuses_options_the_cli_refuses(kwargs, match):
 
     with pytest.raises(InputError, match=f"^{match} must be"):  # before the video is even opened
         analyze_video("/nonexistent/v.avi", **kwargs)
+
+
+def test_a_clip_too_short_for_the_rest_test_says_so(tmp_path, run_cli):
+    """At 240 frames/s, 60 frames last 0.25 s: no point can rest first and then move, and the answer
+    read as 'nothing moves'; a clip without texture was called filmed by a moving camera."""
+    v = part_video(tmp_path / "fast.avi", "revolute", frames=60, fps=240.0)
+    code, out, err = run_cli("articulation", "video", v, "--json")
+    d = json.loads(out)
+    assert code == 0 and d["model"] == "static" and d["parts"] == [] and "too short to tell" in d["note"]
+    flat = tmp_path / "flat.avi"
+    wr = cv2.VideoWriter(str(flat), cv2.VideoWriter.fourcc(*"MJPG"), 30.0, (160, 120))
+    for _ in range(30):
+        wr.write(np.full((120, 160, 3), 128, np.uint8))
+    wr.release()
+    d = json.loads(run_cli("articulation", "video", flat, "--json")[1])
+    assert d["camera"] == "static" and "no texture" in d["note"]
+    d = json.loads(run_cli("articulation", "video", part_video(tmp_path / "ok.avi", "prismatic", frames=45), "--json")[1])
+    assert d["model"] == "prismatic" and d["note"] is None

@@ -125,7 +125,7 @@ def video(
         typer.echo(json.dumps(d, allow_nan=False))
         return
     typer.echo(f"{source}: {d['frames']} frames, camera {d['camera']}, noise {d['noise_px']:.2f} px")
-    typer.echo(f"model: {d['model']}  (confidence {d['confidence']:.2f})")
+    typer.echo(f"model: {d['model']}  (confidence {d['confidence']:.2f}){': ' + d['note'] if d['note'] else ''}")
     for k, p in enumerate(d["parts"], start=1):
         rng = p.get("range") or {}
         extent = (f", {rng['degrees']:.0f} degrees" if "degrees" in rng else

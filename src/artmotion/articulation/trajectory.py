@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from artmotion.articulation.online import MAX_STEP, MIN_STEP
 from artmotion.errors import InputError
 from artmotion.geometry.rotations import axis_angle_to_matrix
 from artmotion.io.files import number, read_text
@@ -148,9 +149,14 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
             raise InputError(f"{what} out of range: values must lie in [-{limit:g}, {limit:g}]", path=path,
                              line=int(lines[row]))
     if tcol is not None:
-        bad = np.flatnonzero(np.diff(tcol) <= 0)
+        steps = np.diff(tcol)
+        bad = np.flatnonzero(steps <= 0)
         if bad.size:
             raise InputError("time must increase from row to row", path=path, line=int(lines[bad[0] + 1]))
+        bad = np.flatnonzero((steps < MIN_STEP) | (steps > MAX_STEP))
+        if bad.size:
+            raise InputError(f"time step {steps[bad[0]]:g} from the row before: steps must lie in "
+                             f"[{MIN_STEP:g}, {MAX_STEP:g}]", path=path, line=int(lines[bad[0] + 1]))
     quats = None
     if width == 7:
         quats = data[:, 3:]

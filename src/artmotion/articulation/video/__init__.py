@@ -54,6 +54,8 @@ class VideoArticulation:
     found: list[Part] = field(default_factory=list)
     noise: float = 0.0
     snapshots: dict[int, np.ndarray] = field(default_factory=dict)
+    #: why no part could be found, when none could be whatever moved ("" otherwise)
+    note: str = ""
 
     @property
     def model(self) -> str:
@@ -68,20 +70,28 @@ class VideoArticulation:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "confidence": self.confidence, "parts": self.parts, "camera": self.camera,
-                "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise}
+                "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise, "note": self.note or None}
 
 
 def analyze_tracks(tracks: PointTracks, focal: float | None = None, max_parts: int = 3, seed: int = 0) -> VideoArticulation:
     """Stages 2-4 on point tracks (see the module doc)."""
     _check_options(focal, max_parts, seed)
     from artmotion.articulation.video.joint import classify_part
-    from artmotion.articulation.video.segment import camera_motion, moving_tracks, noise_level, rigid_parts
+    from artmotion.articulation.video.segment import REST, camera_motion, moving_tracks, noise_level, rest_frames, rigid_parts
 
     sigma = noise_level(tracks)
     moving, tracks = camera_motion(tracks, sigma)
     found = rigid_parts(tracks, moving_tracks(tracks, sigma), sigma, max_parts=max_parts, seed=seed)
     parts = [classify_part(tracks, p, focal=focal) for p in found]
-    return VideoArticulation("moving" if moving else "static", parts, tracks, found, sigma)
+    note = ""
+    k = rest_frames(tracks.fps)
+    if not parts and tracks.frames <= 2 * k:
+        note = (f"too short to tell: a moving part is looked for among points that rest for their first {REST:g} s "
+                f"({k} frames at {tracks.fps:g} frames/s) and are followed twice as long; the video has "
+                f"{tracks.frames} frames")
+    elif not parts and tracks.xy.shape[1] == 0:
+        note = "nothing to follow: no corner in the frames is trackable (no texture)"
+    return VideoArticulation("moving" if moving else "static", parts, tracks, found, sigma, note=note)
 
 
 def snapshot_frames(frames: int, count: int) -> list[int]:

@@ -46,7 +46,8 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
     seen = ~np.isnan(d)
     with np.errstate(invalid="ignore"):
         still = (d < 1.0 + 4 * sigma).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
-    if np.mean(still[seen.sum(axis=1) >= 8] >= 0.25) >= 0.9:
+    counted = still[seen.sum(axis=1) >= 8]
+    if not counted.size or np.mean(counted >= 0.25) >= 0.9:   # (too few tracks to tell: taken as still)
         return False, tracks
     A = np.tile(IDENTITY, (F, 1, 1))
     for f in range(1, F):
@@ -68,13 +69,22 @@ def noise_level(tracks: PointTracks) -> float:
     return float(max(1.4826 * np.median(np.abs(d - np.median(d))), 0.05))
 
 
-def moving_tracks(tracks: PointTracks, sigma: float, rest: float = 0.25, move: float = 12.0) -> np.ndarray:
+#: seconds a moving track must rest first (it belongs to the scene; hands and arms enter moving)
+REST = 0.25
+
+
+def rest_frames(fps: float, rest: float = REST) -> int:
+    """Frames a moving track rests first; it must live twice as long (:func:`moving_tracks`)."""
+    return max(3, int(round(rest * fps)))
+
+
+def moving_tracks(tracks: PointTracks, sigma: float, rest: float = REST, move: float = 12.0) -> np.ndarray:
     """Indices of tracks that rest for their first ``rest`` seconds (within ``3 sigma + 0.5 px`` of
     where they start) and later move more than ``move sigma`` (at least 4 px) from there, leaving
     out those that slipped off their point (:attr:`PointTracks.slipped`: a hand's edge dragged them,
     or they drifted along an edge; a point that moved leaves its first place looking different)."""
     first = tracks.first
-    k = max(3, int(round(rest * tracks.fps)))
+    k = rest_frames(tracks.fps, rest)
     cand = np.flatnonzero((tracks.excursion > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k)
                           & ~tracks.slipped)
     keep = [i for i in cand if tracks.visible[first[i]:first[i] + k, i].all()

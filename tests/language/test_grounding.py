@@ -212,3 +212,21 @@ def test_speech_on_a_full_disk_is_an_error(tmp_path, monkeypatch):
     speak("red square", tmp_path / "ok.wav", 150)
     head = (tmp_path / "ok.wav").read_bytes()
     assert int.from_bytes(head[4:8], "little") + 8 == len(head)      # the sizes filled in
+
+
+def test_unseen_pair_test_names_the_dataset_and_plain_labels(tmp_path):
+    """A smaller but valid dataset: the error named no file and printed np.str_('blue')."""
+    from artmotion.errors import InputError
+    from artmotion.language.grounding.evaluate import HOLDOUTS, holdout_rounds
+
+    colors = np.array(["blue", "blue", "green", "red"])
+    shapes = np.array(["square", "circle", "triangle", "square"])
+    with pytest.raises(InputError) as e:
+        holdout_rounds(colors, shapes, path=tmp_path / "six.csv")
+    msg = str(e.value)
+    assert msg.startswith(str(tmp_path / "six.csv")) and "np.str_" not in msg and "leaves no training example" in msg
+    with pytest.raises(InputError, match="no colour–shape pair of the unseen-pair test is in the dataset"):
+        holdout_rounds(["red"] * 3, ["circle"] * 3, holdouts=[[("blue", "square")]], path=tmp_path / "x.csv")
+    full = [(c, s) for c in ds.COLORS for s in ds.SHAPES] * 2
+    rounds = holdout_rounds([c for c, _ in full], [s for _, s in full], HOLDOUTS)
+    assert len(rounds) == len(HOLDOUTS) and all(held.sum() == 2 * len(p) for p, held in rounds)

@@ -129,21 +129,38 @@ def _nearest_label(gen: np.ndarray, ref: np.ndarray, labels: np.ndarray) -> np.n
     return names[np.argmin(_l1(gen, protos), axis=1)]
 
 
+def holdout_rounds(colors, shapes, holdouts=HOLDOUTS, path=None) -> list[tuple[list, np.ndarray]]:
+    """The rounds of the unseen-pair test that the labels allow: each round's held-out pairs present
+    in the data, and which examples they hold out. An :class:`InputError` naming ``path`` when no
+    held-out pair is in the data, or when holding a round's pairs out leaves a colour or a shape
+    without a training example. Labels only: checked before any feature is computed."""
+    colors, shapes = np.asarray(colors, dtype=str), np.asarray(shapes, dtype=str)
+    present = set(zip(colors.tolist(), shapes.tolist()))
+    rounds = []
+    for pairs in holdouts:
+        pairs = [tuple(p) for p in pairs if tuple(p) in present]
+        if not pairs:
+            continue
+        held = np.array([(c, s) in pairs for c, s in zip(colors.tolist(), shapes.tolist())])
+        lost = (set(colors[held]) - set(colors[~held])) | (set(shapes[held]) - set(shapes[~held]))
+        if lost:
+            raise InputError(f"holding out {', '.join(' '.join(p) for p in pairs)} (the unseen-pair test) leaves no "
+                             f"training example of {', '.join(sorted(lost))}", path=path)
+        rounds.append((pairs, held))
+    if not rounds:
+        every = sorted({" ".join(p) for pairs in holdouts for p in pairs})
+        raise InputError(f"no colour–shape pair of the unseen-pair test is in the dataset (it holds out "
+                         f"{', '.join(every)})", path=path)
+    return rounds
+
+
 def unseen(F: dict, *, holdouts=HOLDOUTS, seed: int = 0) -> dict:
     """Recognition of colour and shape generated from the speech of held-out colour–shape pairs."""
-    present = set(zip(F["colors"], F["shapes"]))
     res: dict[str, dict[str, list]] = {m: {"true": [], "color": [], "shape": [], "renders": []}
                                        for m in ("compositional", "paired")}
     used = []
-    for rnd, pairs in enumerate(holdouts):
-        pairs = [p for p in pairs if tuple(p) in present]
-        if not pairs:
-            continue
-        held = np.array([(c, s) in pairs for c, s in zip(F["colors"], F["shapes"])])
+    for rnd, (pairs, held) in enumerate(holdout_rounds(F["colors"], F["shapes"], holdouts)):
         tr, te = np.flatnonzero(~held), np.flatnonzero(held)
-        lost = (set(F["colors"][te]) - set(F["colors"][tr])) | (set(F["shapes"][te]) - set(F["shapes"][tr]))
-        if lost:
-            raise InputError(f"holding out {pairs} leaves no training example of {sorted(lost)}")
         used.append([" ".join(p) for p in pairs])
         comp, paired = _fit_both(F, tr, seed)
         for model, (gc, gs) in _generate(comp, paired, F, te).items():
@@ -159,8 +176,6 @@ def unseen(F: dict, *, holdouts=HOLDOUTS, seed: int = 0) -> dict:
                     r["renders"].append((" ".join(p), gc[i], gs[i]))
     out: dict[str, Any] = {}
     for model, r in res.items():
-        if not r["true"]:
-            raise InputError("no held-out colour–shape pair is in the dataset")
         tc = [t[0] for t in r["true"]]
         ts = [t[1] for t in r["true"]]
         out[model] = {
@@ -297,6 +312,7 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     t_feat = time.perf_counter() - t0
     if len(F["colors"]) < 6:
         raise InputError(f"too few examples ({len(F['colors'])}) to evaluate: at least 6 are needed", path=dataset)
+    holdout_rounds(F["colors"], F["shapes"], holdouts, path=dataset)     # (before the models' fits)
     H, M = estimate_linking([F["color"], F["shape"]], F["audio_seg"], seed=seed)
     t1 = time.perf_counter()
     ret = retrieval(F, seed=seed)

@@ -331,3 +331,13 @@ def test_curve_joints_in_articulated_slam():
 def test_monte_carlo_refuses_bad_options(kwargs, match):
     with pytest.raises(InputError, match=match):
         monte_carlo(**{"runs": 1, "steps": 5, **kwargs})
+
+
+def test_the_interval_of_an_error_does_not_go_below_zero():
+    """Two runs: the t interval of a mean error went to [-0.283, 0.429]."""
+    from artmotion.articulation.slam.evaluate import _interval
+
+    assert _interval([0.01, 0.5])["low"] == 0.0
+    assert _interval([-1.0, 0.5])["low"] < 0.0          # (a signed quantity keeps its interval)
+    got = _interval([0.30, 0.31, 0.29, 0.30])
+    assert 0.27 < got["low"] < 0.30 < got["high"] < 0.33

@@ -102,7 +102,8 @@ def pose_errors(est: np.ndarray, true: np.ndarray, lag: int = 0, stride: int = 5
 
 
 def _interval(values) -> dict:
-    """Mean and its 95 % confidence interval (Student's t over runs; ``None`` from a single run)."""
+    """Mean and its 95 % confidence interval (Student's t over runs; ``None`` from a single run),
+    cut at 0 for values that cannot be negative (errors: the t interval of two runs went below 0)."""
     from scipy.stats import t as student
 
     v = np.asarray(values, dtype=float)
@@ -110,7 +111,7 @@ def _interval(values) -> dict:
     if len(v) < 2:
         return {"mean": m, "low": None, "high": None}
     h = float(student.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
-    return {"mean": m, "low": m - h, "high": m + h}
+    return {"mean": m, "low": max(m - h, 0.0) if v.min() >= 0 else m - h, "high": m + h}
 
 
 def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2", seed: int = 0, lag: int = 0,

@@ -180,3 +180,18 @@ def test_slam_bad_options(run_cli, tmp_path):
                        (("--landmarks", "10000000"), "--landmarks")):
         code, out, err = run_cli("slam", "simulate", *args)
         assert code == 2 and err.startswith("artmotion: error:") and word in err and "Traceback" not in err
+
+
+def test_a_door_in_millimetres_says_the_radius_prior_rules_the_circle_out(tmp_path, run_cli):
+    """With the default prior (5 cm - 1 m), a door written in millimetres is prismatic with 1.0
+    although a circle fits it 20 times as closely: the answer now says why."""
+    from artmotion.articulation.synthetic import synthetic_log
+
+    P, _ = synthetic_log("door", seed=1)
+    code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "mm.txt", P * 1000))
+    assert code == 0 and "note: the track bends on a circle of radius" in out and "--radius-range" in out
+    code, out, _ = run_cli("articulation", "fit", tmp_path / "mm.txt", "--radius-range", "50", "1000", "--json")
+    assert json.loads(out)["model"] == "revolute" and json.loads(out)["note"] is None
+    D, _ = synthetic_log("drawer", seed=1)
+    code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "d.txt", D * 1000), "--json")
+    assert json.loads(out)["model"] == "prismatic" and json.loads(out)["note"] is None

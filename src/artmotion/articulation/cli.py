@@ -61,6 +61,8 @@ def fit(
     dec = out["decided_at"]
     when = f"decided at sample {dec} ({100.0 * (dec + 1) / n:.0f}% of the track)" if dec is not None else "undecided"
     typer.echo(f"model: {out['model']}  ({when})")
+    if out.get("note"):
+        typer.echo(f"  note: {out['note']}")
     fd = out.get("first_decision")
     if fd and fd["model"] != out["model"]:
         typer.echo(f"  first passed the threshold: {fd['model']} at sample {fd['at']} (revised later)")

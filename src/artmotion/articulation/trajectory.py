@@ -175,7 +175,24 @@ def fit_points(points, time=None, **kwargs) -> dict:
     res = estimate_online(points, time, **kwargs)
     out = res.to_dict()
     out["input"] = f"point{res.dim}d"
+    out["note"] = _radius_note(res, kwargs.get("radius_range") or (0.05, 1.0))
     return out
+
+
+def _radius_note(res, radius_range: tuple[float, float]) -> str | None:
+    """A word when the prior on a hinge's radius, not the data, is what rules the circle out: the
+    circle fits at least twice as closely as the line but its radius lies outside ``radius_range``
+    (a door written in millimetres against the default 5 cm - 1 m was prismatic with 1.0)."""
+    fit = res.fits.get("revolute")
+    radius = getattr(fit, "radius", None)
+    lo, hi = radius_range
+    if res.model == "revolute" or radius is None or lo <= radius <= hi:
+        return None
+    if not res.noise.get("revolute", math.inf) * 2.0 <= res.noise.get("prismatic", 0.0):
+        return None
+    return (f"the track bends on a circle of radius {radius:.4g} (noise {res.noise['revolute']:.3g}, the line's "
+            f"{res.noise['prismatic']:.3g}), outside the prior range of a hinge's radius [{lo:g}, {hi:g}]: give "
+            "--radius-range in the data's units")
 
 
 def fit_poses(positions, quats, time=None, noise: float | None = None, min_samples: int = 7, horizon: int = 5,

@@ -1,4 +1,5 @@
 import json
+import os
 import shutil
 
 import cv2
@@ -240,3 +241,118 @@ def test_bad_inputs(split, run_cli, tmp_path):
     for opts, word in ((("--euler", "abc"), "--euler"), (("--euler", "xyZ"), "--euler"),
                        (("--orientation", "yaw,yaw,yaw"), "twice")):
         _one_line(*run_cli("pose", "eval", split / "test", split / "test.csv", *opts)[::2], word)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """16 rendered crops with labels.csv and boxes.csv, and a hog model trained on them (no boxes)."""
+    from artmotion.pose.data import load_labelled
+    from artmotion.pose.model import PoseRegressor
+
+    root = tmp_path_factory.mktemp("small") / "r"
+    write_dataset(root, 16, seed=3)
+    names, _, imgs, Y = load_labelled(root / "crops", root / "labels.csv")
+    PoseRegressor(feature="hog").fit(imgs, Y, names).save(root / "m.npz")
+    return root, root / "m.npz"
+
+
+def test_predictions_quote_image_and_angle_names(small, run_cli, tmp_path):
+    """A crop name with a comma, a quote or a line feed, and an angle column with a comma, are quoted
+    in pose predict's and pose eval's CSV files, which read back as they were written; a name that
+    no CSV file gives back as it is (a space at its start, a carriage return, bytes that
+    are not UTF-8) is refused before any work."""
+    import csv
+
+    root, model = small
+    crops = tmp_path / "crops"
+    crops.mkdir()
+    odd = [f"left,cam {i:02d}.png" for i in range(14)] + ['say "a".png', "two\nlines.png"]
+    src = sorted((root / "crops").iterdir())
+    for name, p in zip(odd, src):
+        shutil.copy(p, crops / name)
+    code, out, err = run_cli("pose", "predict", model, crops, "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    names, imgs, P = read_labels(tmp_path / "p.csv")
+    assert imgs == sorted(odd) and P.shape == (16, 8) and np.isfinite(P).all()
+    assert names == ["yaw", "yaw_std", "pitch", "pitch_std", "roll", "roll_std", "opening", "opening_std"]
+    # pose eval --out: the cross-validated predictions, also with a comma in an angle's name
+    _, _, Y = read_labels(root / "labels.csv")
+    with open(tmp_path / "labels.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["image", "yaw", "pitch", "roll", "jaw, deg"])
+        w.writerows([name, *y] for name, y in zip(odd, Y))
+    code, out, err = run_cli("pose", "eval", crops, tmp_path / "labels.csv", "--feature", "hog", "--folds", 2,
+                             "--out", tmp_path / "ev")
+    assert code == 0, err
+    names, imgs, P = read_labels(tmp_path / "ev" / "cv_hog.csv")
+    assert imgs == sorted(odd) and names[-2:] == ["jaw, deg", "jaw, deg_std"] and P.shape == (16, 8)
+    for i, bad in enumerate((" lead.png", "cr\r.png")):
+        folder = tmp_path / f"bad{i}"
+        folder.mkdir()
+        shutil.copy(src[0], folder / bad)
+        code, out, err = run_cli("pose", "predict", model, folder, "--out", tmp_path / "q.csv")
+        assert code == 2 and err.count("\n") == 1 and "rename the file" in err and "Traceback" not in err, (bad, err)
+    assert not (tmp_path / "q.csv").exists()
+    from artmotion.errors import InputError
+    from artmotion.pose.data import check_csv_names
+
+    with pytest.raises(InputError, match="bytes that are not UTF-8"):  # (the message holds the name: not via capsys)
+        check_csv_names([tmp_path / os.fsdecode(b"not-utf8-\xff.png")])
+    # label columns 'yaw' and 'yaw_std' would give predictions a header with 'yaw_std' twice
+    (tmp_path / "std.csv").write_text((root / "labels.csv").read_text().replace("opening", "yaw_std", 1))
+    code, out, err = run_cli("pose", "train", root / "crops", tmp_path / "std.csv", "--model", tmp_path / "x.npz")
+    assert code == 2 and err.count("\n") == 1 and "std.csv:1:" in err and "'yaw_std'" in err, err
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_eval_refuses_label_columns_named_like_its_results(small, run_cli, tmp_path):
+    """A label column whose name is a key of pose eval's results (e.g. 'orientation' beside the stem's
+    Euler columns) would hide that result in the tables and eval.json: refused in one line naming
+    the labels. Without Euler columns there is no stem error, and a column 'orientation' is the user's."""
+    root, _ = small
+    labels = (root / "labels.csv").read_text()
+    assert labels.startswith("image,yaw,pitch,roll,opening\n")
+    clashes = {"orientation": "'orientation' would be both the stem-orientation error and the error of column "
+                              "'orientation'",
+               "all": "'all in 3sd' would be both", "yaw filtered": "'yaw filtered' would be both",
+               "seconds": "'seconds' would be both the run time"}
+    for col, message in clashes.items():
+        (tmp_path / "l.csv").write_text(labels.replace("opening", col, 1))
+        code, out, err = run_cli("pose", "eval", root / "crops", tmp_path / "l.csv", "--feature", "hog", "--folds", 2,
+                                 "--out", tmp_path / "ev")
+        assert code == 2 and err.count("\n") == 1 and "l.csv:1:" in err and message in err, (col, err)
+        assert not (tmp_path / "ev").exists()
+    (tmp_path / "l.csv").write_text(labels.replace("yaw", "orientation", 1))
+    code, out, err = run_cli("pose", "eval", root / "crops", tmp_path / "l.csv", "--feature", "hog", "--folds", 2,
+                             "--out", tmp_path / "ev")
+    assert code == 0, err
+    res = json.loads((tmp_path / "ev" / "eval.json").read_text())["hog"]
+    _, _, P = read_labels(tmp_path / "ev" / "cv_hog.csv")
+    _, _, Y = read_labels(root / "labels.csv")
+    assert res["orientation"] == pytest.approx(np.abs(P[:, 0] - Y[:, 0]).mean(), abs=1e-3)
+    # result_keys are summary's keys; an unseen sequence's prefix can clash too
+    from artmotion.errors import InputError
+    from artmotion.pose.evaluate import Columns, check_result_keys, result_keys, summary
+
+    names = ["yaw", "pitch", "roll", "opening"]
+    cols = Columns.from_names(names)
+    Z = np.zeros((3, 4))
+    assert {k for k, _ in result_keys(names, cols)} == set(summary(Z, Z, Z + 1, Z, cols, names)) | {"seconds"}
+    with pytest.raises(InputError, match="'test yaw' would be both the error of column 'test yaw' and the error of "
+                                         "column 'yaw' on the test sequence"):
+        check_result_keys(["yaw", "test yaw"], Columns.from_names(["yaw", "test yaw"]), ["test"], path="l.csv")
+
+
+def test_boxes_are_refused_where_they_would_do_nothing(small, run_cli, tmp_path):
+    """--boxes is used by the cnn feature only: with hog or lbp, and with a model trained without
+    boxes, it is an error, before any work, rather than silently ignored."""
+    root, model = small
+    boxes = root / "boxes.csv"
+    for args in (("train", root / "crops", root / "labels.csv", "--model", tmp_path / "m.npz", "--boxes", boxes),
+                 ("train", root / "crops", root / "labels.csv", "--model", tmp_path / "m.npz", "--boxes", boxes,
+                  "--feature", "lbp"),
+                 ("predict", model, root / "crops", "--out", tmp_path / "p.csv", "--boxes", boxes),
+                 ("eval", root / "crops", root / "labels.csv", "--folds", 2, "--out", tmp_path / "ev", "--boxes", boxes)):
+        code, out, err = run_cli("pose", *args)
+        assert code == 2 and err.count("\n") == 1 and "--boxes" in err, (args, err)
+    assert not any((tmp_path / n).exists() for n in ("m.npz", "p.csv", "ev"))

@@ -206,7 +206,7 @@ def test_cli_trains_on_several_sequences(rendered, run_cli, tmp_path):
     assert code == 2 and "give the training crops" in err, err
     (other / "labels.csv").write_text("\n".join(["image,yaw,pitch,roll,jaw"] + lines[1:]) + "\n")
     code, out, err = run_cli("pose", "train", other / "crops", other / "labels.csv", "--boxes", root / "test" / "boxes.csv",
-                             "--set", root / "test", "--model", tmp_path / "x.npz")
+                             "--set", root / "test", "--model", tmp_path / "x.npz", "--feature", "cnn")
     assert code == 2 and "differ from the first sequence's" in err and err.count("\n") == 1, err
     assert not (tmp_path / "x.npz").exists()
 

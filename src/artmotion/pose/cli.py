@@ -28,7 +28,10 @@ pose_app = typer.Typer(
 
 
 BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' (pose render writes boxes.csv): where each crop lies in its "
-              "frame; the cnn feature then learns the camera's perspective.")
+              "frame; the cnn feature then learns the camera's perspective. Only with --feature cnn (hog and lbp "
+              "do not use it: an error).")
+PREDICT_BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' of the crops: needed by a model trained with --boxes, "
+                      "an error with any other model (it would not use them).")
 
 
 def _views(boxes: Path | None, paths) -> np.ndarray | None:
@@ -112,6 +115,8 @@ def train_cmd(
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
                         seed=seed, progress=True, net_steps=steps,
                         n_inducing_var=inducing_var or None)  # checks feature and method before any image is read
+    if boxes is not None and feature != "cnn":
+        raise InputError(f"--boxes needs --feature cnn (the {feature} feature does not use where a crop lies)")
     names: list[str] = []
     imgs: list = []
     Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)
@@ -146,16 +151,20 @@ def predict_cmd(
     out: Path = typer.Option(..., "--out", help="CSV 'image,<name>,<name>_std,...' to write."),
     smooth: bool = typer.Option(False, "--smooth", help="Kalman-smooth the sequence (Eq. 3.6-3.7 forward, "
                                 "then Rauch-Tung-Striebel backward: each frame from past and future ones)."),
-    boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
+    boxes: Optional[Path] = typer.Option(None, "--boxes", help=PREDICT_BOXES_HELP),
 ):
     """Predict every angle (mean and standard deviation, degrees) of each crop."""
     from artmotion.io import check_writable
-    from artmotion.pose.data import list_images, read_images, write_predictions
+    from artmotion.pose.data import check_csv_names, list_images, read_images, write_predictions
     from artmotion.pose.model import PoseRegressor, is_foreign
 
     check_writable(out, inputs=(model, boxes, images))
     reg = PoseRegressor.load(model)
+    if boxes is not None and not reg.uses_views_:
+        raise InputError("this model was trained without --boxes (or not with --feature cnn) and would not use "
+                         "them: drop --boxes", path=model)
     paths = list_images(images)
+    check_csv_names(paths)
     views = _views(boxes, paths)
     if views is None and reg.uses_views_:
         raise InputError("this model was trained with --boxes: give the crops' boxes (--boxes)", path=model)
@@ -201,7 +210,7 @@ def eval_cmd(
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
     from artmotion.pose.data import load_labelled, write_predictions
-    from artmotion.pose.evaluate import Columns, cross_validate, summary
+    from artmotion.pose.evaluate import Columns, check_result_keys, cross_validate, summary
     from artmotion.pose.model import PoseRegressor
 
     if split not in ("contiguous", "random"):
@@ -212,6 +221,8 @@ def eval_cmd(
 
     check_apart(out, (images, test_images, dark_images))
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
+    if boxes is not None and "cnn" not in feature:
+        raise InputError("--boxes needs --feature cnn (hog and lbp do not use where a crop lies)")
     # the outputs, known from the options: checked before the work (a folder of the user's own that
     # holds one of them was refused only once the evaluation was done)
     sets = ["cv"] + [key for key, given in (("test", test_images), ("dark", dark_images)) if given is not None]
@@ -222,6 +233,7 @@ def eval_cmd(
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
     views = _views(boxes, paths)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
+    check_result_keys(names, cols, sets[1:], path=labels)  # a column 'orientation' would hide the stem's error
     unseen = {}
     for key, (u_images, u_labels, u_boxes, opt) in {"test": (test_images, test_labels, test_boxes, "--test"),
                                                     "dark": (dark_images, dark_labels, dark_boxes, "--dark")}.items():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -72,6 +73,11 @@ def load_labelled(images_dir: str | os.PathLike, labels: str | os.PathLike, prog
     """
     files = list_images(images_dir)
     names, img_names, Y = read_labels(labels)
+    out = prediction_header(names)
+    twice = [c for i, c in enumerate(out) if c in out[:i]]
+    if twice:  # e.g. columns 'yaw' and 'yaw_std': the predictions could not be read back
+        raise InputError(f"column {twice[0]!r} would appear twice in the predictions' header "
+                         "(image,<angle>,<angle>_std,...): rename a column", path=labels, line=1)
     index = {n: i for i, n in enumerate(img_names)}
     by_name = {p.name: p for p in files}
     for p in files:
@@ -84,13 +90,35 @@ def load_labelled(images_dir: str | os.PathLike, labels: str | os.PathLike, prog
     return names, files, read_images(files, progress), Y[order]
 
 
+def check_csv_names(paths: Sequence[Path]) -> None:
+    """Refuse crops whose file names a predictions CSV would not give back as they are: the reader
+    (:func:`read_labels`) strips spaces at the ends of a value and reads a carriage return as a line
+    end, and the file is UTF-8 (commas, quotes and line feeds are quoted)."""
+    for p in paths:
+        n = p.name
+        why = "a space at its start or end" if n != n.strip() else "a carriage return" if "\r" in n else ""
+        try:
+            n.encode("utf-8")
+        except UnicodeEncodeError:
+            why = "bytes that are not UTF-8"
+        if why:
+            raise InputError(f"the file name has {why}: a CSV file cannot hold it as it is; rename the file", path=p)
+
+
+def prediction_header(names: Sequence[str]) -> list[str]:
+    """The columns of :func:`write_predictions`' file."""
+    return ["image", *(c for n in names for c in (n, f"{n}_std"))]
+
+
 def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Sequence[str], mean: np.ndarray,
                       std: np.ndarray) -> None:
+    """``image,<name>,<name>_std,...`` (degrees), one row per image; a name with a comma, quote or
+    line feed is quoted (:mod:`csv`), so :func:`read_labels` reads it back as it is."""
     with atomic_write(path) as fh:
-        fh.write("image," + ",".join(f"{n},{n}_std" for n in names) + "\n")
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(prediction_header(names))
         for i, img in enumerate(images):
-            vals = ",".join(f"{mean[i, k]:.4f},{std[i, k]:.4f}" for k in range(len(names)))
-            fh.write(f"{img},{vals}\n")
+            w.writerow([img, *(f"{v:.4f}" for k in range(len(names)) for v in (mean[i, k], std[i, k]))])
 
 
 BOX_COLUMNS = ["image", "x", "y", "w", "h", "frame_w", "frame_h"]

@@ -70,6 +70,34 @@ def errors(Y: np.ndarray, P: np.ndarray, cols: Columns, names: Sequence[str]) ->
     return out
 
 
+def result_keys(names: Sequence[str], cols: Columns, sets: Sequence[str] = ()) -> list[tuple[str, str]]:
+    """The keys of one feature's results in ``pose eval`` (its tables and eval.json), each with what
+    it holds: the run time, :func:`summary`'s keys and, prefixed ``"<set> "``, those of every unseen
+    sequence in ``sets`` ("test", "dark")."""
+    errs = [("orientation", "stem-orientation error")] if cols.orientation else []
+    errs += [(n, f"error of column {n!r}") for n in names]
+    keys = [("seconds", "the run time")]
+    for s in ("", *sets):
+        p, on = (f"{s} ", f" on the {s} sequence") if s else ("", "")
+        for k, what in errs:
+            keys += [(p + k, f"the {what}{on}"), (f"{p}{k} filtered", f"the filtered {what}{on}")]
+        keys += [(f"{p}{n} in 3sd", f"the 3σ coverage of column {n!r}{on}") for n in names]
+        keys.append((f"{p}all in 3sd", f"the 3σ coverage of all columns{on}"))
+    return keys
+
+
+def check_result_keys(names: Sequence[str], cols: Columns, sets: Sequence[str] = (), path=None) -> None:
+    """An :class:`InputError` naming ``path`` (the labels) when two of :func:`result_keys` are one
+    key (a label column ``orientation`` beside the stem's Euler columns, ``all``, ``seconds``,
+    ``<column> filtered``, ``test <column>``, ...): one would hide the other in the tables and eval.json."""
+    seen: dict[str, str] = {}
+    for key, what in result_keys(names, cols, sets):
+        if key in seen:
+            raise InputError(f"label column names clash with the results of pose eval: {key!r} would be both "
+                             f"{seen[key]} and {what}; rename the column", path=path, line=1)
+        seen[key] = what
+
+
 def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: int = 5, progress: bool = False,
                    split: str = "random", seed: int = 0, views: np.ndarray | None = None, **reg_kwargs):
     """Out-of-fold predictions: ``(mean, std, filtered_mean, filtered_std, fold_id)``.

@@ -33,7 +33,7 @@ from _docs import replace_block
 from artmotion.tracking.instruments.annotations import read_tools_csv
 from artmotion.tracking.instruments.detector import ToolDetector
 from artmotion.tracking.instruments.evaluate import evaluate_tools
-from artmotion.tracking.instruments.track import ToolTracker
+from artmotion.tracking.instruments.track import ToolTracker, track_tools
 
 BIRTHS = (0.4, 0.5, 0.6)
 COASTS = (0, 3)
@@ -151,18 +151,17 @@ def main(argv=None) -> int:
         for birth, coast in SETTINGS:
             tr = ToolTracker(det, birth=birth, coast=coast)
             t0 = time.perf_counter()
-            pred = {f: tr.update(imgs[f], dets[f]) for f in block}
+            pred = dict(track_tools(((f, imgs[f], dets[f]) for f in block), det, tr))
             fps = len(block) / (time.perf_counter() - t0 + det_s)
             held[k][birth, coast] = evaluate_tools({f: gt[f] for f in block}, pred, fps=fps)
             preds[k, birth, coast] = pred
         for name, off in ABLATIONS.items():  # each component off, at the default settings
-            tr = ToolTracker(det, **off)
-            pred = {f: tr.update(imgs[f], dets[f]) for f in block}
+            pred = dict(track_tools(((f, imgs[f], dets[f]) for f in block), det, **off))
             ablation.setdefault(name, []).append(evaluate_tools({f: gt[f] for f in block}, pred))
         for sc in SCALES:  # the block's frames at another size (the detector brings them to its own)
-            tr = ToolTracker(det)
             interp = cv2.INTER_LINEAR if sc > 1 else cv2.INTER_AREA
-            pred = {f: tr.update(cv2.resize(imgs[f], None, fx=sc, fy=sc, interpolation=interp)) for f in block}
+            pred = dict(track_tools(((f, cv2.resize(imgs[f], None, fx=sc, fy=sc, interpolation=interp)) for f in block),
+                                    det))
             truth = {f: gt[f] * np.array([sc, sc, sc, 1.0]) for f in block}
             scaled.setdefault(sc, []).append(evaluate_tools(truth, pred, radius=15 * sc))
         print(f"fold {k}: frames {block[0]}-{block[-1]}, trained in {det.train_seconds_:.0f} s; "

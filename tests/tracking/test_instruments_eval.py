@@ -227,8 +227,13 @@ def test_one_to_one():
 
 
 def test_frames_missing_on_one_side():
+    # frame 3 is not annotated: its prediction is not scored, only counted
     res = evaluate_tools(_gt({1: [(10, 10, 0.0)], 2: [(10, 10, 0.0)]}), _pred({2: [(0, 10, 10, 0.0)], 3: [(0, 5, 5, 0.0)]}))
-    assert res["frames"] == 3 and res["gt"] == 2 and res["pred"] == 2 and res["matched"] == 1
+    assert res["frames"] == 2 and res["gt"] == 2 and res["pred"] == 1 and res["matched"] == 1
+    assert res["unscored_frames"] == 1 and res["unscored_pred"] == 1
+    # a frame given as annotated with no instrument (an empty array: the API can say it, tools.csv cannot) is scored
+    res = evaluate_tools({**_gt({1: [(10, 10, 0.0)]}), 3: np.zeros((0, 4))}, _pred({1: [(0, 10, 10, 0.0)], 3: [(0, 5, 5, 0.0)]}))
+    assert res["frames"] == 2 and res["pred"] == 2 and res["precision"] == 0.5 and res["unscored_frames"] == 0
     res = evaluate_tools(_gt({1: [(10, 10, 0.0)]}), {})
     assert res["recall"] == 0.0 and res["precision"] is None
     assert "precision n/a (0/0)" in format_report(res)
@@ -312,3 +317,25 @@ def test_no_frame_in_common_is_an_error(tmp_path, run_cli):
     pred = _write(tmp_path, f"{PRED_HEADER}\n101,0,10,10,20,0,1\n", "pred.csv")
     code, out, err = run_cli("tool", "eval", str(gt), str(pred))
     assert code == 2 and err.count("\n") == 1 and "pred.csv: no predicted frame is an annotated one" in err
+
+
+def test_sparse_annotations_score_only_the_annotated_frames(tmp_path, run_cli):
+    """Annotations of every 5th frame against perfect predictions on every frame scored a precision
+    of 0.2 (every prediction on a frame without annotation a false one); the frames without
+    annotation are not scored, and the report says how many predictions were left out."""
+    heads = _two_tools(30)
+    pred = _pred({f: [(i, *h) for i, h in enumerate(hs)] for f, hs in heads.items()})
+    gt = _gt({f: hs for f, hs in heads.items() if f % 5 == 0})
+    res = evaluate_tools(gt, pred)
+    assert res["frames"] == 6 and res["gt"] == res["pred"] == res["matched"] == 12
+    assert res["recall"] == res["precision"] == 1.0
+    assert res["unscored_frames"] == 24 and res["unscored_pred"] == 48
+    assert "not scored: 48 predicted heads on 24 frames that are not annotated" in format_report(res)
+    assert "not scored" not in format_report(evaluate_tools(gt, {f: p for f, p in pred.items() if f % 5 == 0}))
+    # the same through 'tool eval'
+    write_predictions(tmp_path / "pred.csv", pred)
+    rows = "".join(f"{f},{k},{y},{x},20,{a}\n" for f, hs in heads.items() if f % 5 == 0 for k, (x, y, a) in enumerate(hs))
+    gt_csv = _write(tmp_path, f"{TOOLS_HEADER}\n{rows}", "gt.csv")
+    code, out, err = run_cli("tool", "eval", gt_csv, tmp_path / "pred.csv")
+    assert code == 0, err
+    assert "precision 1.000 (12/12)" in out and "not scored: 48 predicted heads on 24 frames" in out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Optional
 
@@ -18,7 +19,9 @@ tool_app = typer.Typer(help="Surgical instruments: learn a head detector from an
 def _numbered_frames(source: str):
     """``(sequence, frame numbers)``: an image folder's frames are numbered by their file names'
     numbers (as in tools.csv; by position when some are missing); a video's are None
-    (its frames count from 1)."""
+    (its frames count from 1). A number beyond what a predictions file holds (a date-stamped name)
+    is an error naming its frame, before any work, not of the output file after the tracking."""
+    from artmotion.io.mot import MAX_FRAME
     from artmotion.io.sequence import _frame_number, open_sequence
 
     seq = open_sequence(source)
@@ -27,6 +30,10 @@ def _numbered_frames(source: str):
     numbers = [_frame_number(p) for p in seq.images]
     if any(n is None for n in numbers):  # (repeated numbers are already an error of open_sequence)
         return seq, list(range(1, len(seq.images) + 1))
+    for n, p in zip(numbers, seq.images):
+        if n is not None and n > MAX_FRAME:
+            raise InputError(f"frame number {n} (the last number in the name) is beyond {MAX_FRAME}, the largest a "
+                             "predictions file holds: rename the frames", path=p)
     return seq, numbers
 
 
@@ -63,6 +70,11 @@ def train(
     if not used:
         raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
     imgs = [read_image(by_number[n]) for n in used]
+    (H, W), _ = Counter(img.shape[:2] for img in imgs).most_common(1)[0]
+    for n, img in zip(used, imgs):  # one detector, one frame size: the odd frame named
+        if img.shape[:2] != (H, W):
+            raise InputError(f"image size {img.shape[1]}x{img.shape[0]} differs from the other training frames' "
+                             f"{W}x{H}", path=by_number[n])
     for n, img in zip(used, imgs):  # a head is where the tool is seen: inside its frame
         h, w = img.shape[:2]
         out = [(x, y) for x, y in heads[n][:, :2] if not (0 <= x < w and 0 <= y < h)]
@@ -79,7 +91,8 @@ def train(
     det = ToolDetector(epochs=epochs, threshold=threshold, seed=seed).fit(imgs, [heads[n] for n in used], progress)
     det.save(model)
     k = sum(len(heads[n]) for n in used)
-    typer.echo(f"trained on {len(used)} frames ({k} heads) in {det.train_seconds_:.0f} s; wrote {model}")
+    typer.echo(f"trained on {len(used)} frames ({k} heads) in {det.train_seconds_:.0f} s; reports at most "
+               f"{det.max_heads_} heads a frame (twice the most in a training frame); wrote {model}")
 
 
 @tool_app.command("track")
@@ -90,29 +103,47 @@ def track(
     threshold: Optional[float] = typer.Option(None, "--threshold", help="Least detection score (default: the model's)."),
     progress: bool = typer.Option(None, "--progress/--no-progress", help="Progress bar (default: on a terminal)."),
 ):
-    """Find and track the instruments: one row per instrument per frame, with persistent identities."""
+    """Find and track the instruments: one row per instrument per frame, with persistent identities.
+
+    A head is reported once detections on 2 frames confirm it, from its first frame on. Frames of
+    another size than the model's training frames are scaled to their area, as the same view at
+    another resolution (the summary says so): a crop of the view, whose instruments keep their
+    size, is better padded to the model's frame size (docs/surgical.md)."""
     from artmotion.io import check_writable
     from artmotion.tracking.instruments.annotations import write_predictions
 
     check_writable(out, inputs=(model, source))
     if threshold is not None:
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
-    from artmotion.tracking.instruments.detector import ToolDetector
-    from artmotion.tracking.instruments.track import track_sequence
+    seq, numbers = _numbered_frames(source)
+    from artmotion.tracking.instruments.detector import ToolDetector, scale_to
+    from artmotion.tracking.instruments.track import ToolTracker, track_sequence
 
     det = ToolDetector.load(model)
     if threshold is not None:
         det.threshold = threshold
-    seq, numbers = _numbered_frames(source)
+    tracker = ToolTracker(det)
     t0 = time.perf_counter()
     pred = {numbers[i - 1] if numbers else i: rows
-            for i, rows in track_sequence(seq, det, sys.stderr.isatty() if progress is None else progress)}
+            for i, rows in track_sequence(seq, det, sys.stderr.isatty() if progress is None else progress,
+                                          tracker=tracker)}
     seconds = time.perf_counter() - t0
     write_predictions(out, pred)
+    if tracker.capped:
+        typer.echo(f"note: on {tracker.capped} frame(s) the detector found more heads than the {det.max_heads_} a "
+                   f"frame the model reports and left out a likely one (score {tracker.birth} or more): train it on "
+                   "frames that show as many instruments")
     heads = sum(len(r) for r in pred.values())
     ids = len({int(t) for r in pred.values() for t in r[:, 0]})
-    typer.echo(f"{len(pred)} frames, {heads} heads of {ids} instruments in {seconds:.1f} s "
-               f"({len(pred) / max(seconds, 1e-9):.1f} frames/s); wrote {out}")
+    why = (f" (a head is confirmed by detections on 2 frames, and the input has {len(pred)})"
+           if not heads and len(pred) < 2 else "")
+    f = scale_to(det.frame_shape_, (seq.height, seq.width))
+    (h, w), scaled = det.frame_shape_, ""
+    if f != 1.0:
+        scaled = (f"; frames of {seq.width}x{seq.height} scaled x{f:.2f} to the model's {w}x{h} area "
+                  "(the same view assumed)")
+    typer.echo(f"{len(pred)} frames, {heads} heads of {ids} instruments{why} in {seconds:.1f} s "
+               f"({len(pred) / max(seconds, 1e-9):.1f} frames/s){scaled}; wrote {out}")
 
 
 @tool_app.command("eval")
@@ -123,7 +154,12 @@ def evaluate(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frames per second of the tracker, to report."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ):
-    """Score predictions: recall and precision of heads within --radius px, shaft angle error, identity switches."""
+    """Score predictions: recall and precision of heads within --radius px, shaft angle error, identity switches.
+
+    Only the frames GT.csv has rows for are scored: a frame without a row may be one nobody annotated
+    (every 5th frame, a stretch of the video), so the predictions on it are not counted as false,
+    only reported as not scored. (A frame annotated as holding no instrument cannot be written in
+    GT.csv, so false heads on such a frame are not seen.)"""
     import json
 
     from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv

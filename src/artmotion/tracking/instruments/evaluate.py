@@ -1,13 +1,18 @@
 """Scores of instrument predictions against ``tools.csv`` annotations.
 
-Per frame (every frame of either side; a frame missing on one side is empty there), predicted
-heads are matched one-to-one to the true heads with the Hungarian algorithm on the Euclidean
-distance between heads, pairs farther apart than ``radius`` px being no match. Among the matchings
-the most pairs within the radius is taken; among those, the one that continues the most matches of
-earlier frames (a true instrument kept on the track it was last matched to, as CLEAR MOT does);
-among those, the one of least total distance. Recall is matched / true heads, precision matched /
-predicted heads, and the shaft angle error of a matched pair the absolute difference of the two
-angles, wrapped, in degrees in ``[0, 180]``.
+Only annotated frames are scored: the frames of ``gt``. A ``tools.csv`` names a frame only when it
+has an instrument (its rows); a frame it does not name may be one nobody annotated (every 5th frame,
+a stretch of the video), and the predictions on it cannot be judged: they are left out of the score
+and counted (``unscored_frames``, ``unscored_pred``), so that perfect predictions on every frame
+against annotations of every 5th score a precision of 1, not 0.2. (False heads on a frame without
+instrument are therefore not seen from a ``tools.csv``; a frame given in ``gt`` with an empty array
+is annotated and scored.) On each scored frame, predicted heads are matched one-to-one to the true
+heads with the Hungarian algorithm on the Euclidean distance between heads, pairs farther apart than
+``radius`` px being no match. Among the matchings the most pairs within the radius is taken; among
+those, the one that continues the most matches of earlier frames (a true instrument kept on the
+track it was last matched to, as CLEAR MOT does); among those, the one of least total distance.
+Recall is matched / true heads, precision matched / predicted heads, and the shaft angle error of a
+matched pair the absolute difference of the two angles, wrapped, in degrees in ``[0, 180]``.
 
 The annotations' ``tool`` index is no identity (the order of the instruments changes), so the true
 heads are first linked from each annotated frame to the next one into identities (Hungarian on
@@ -116,9 +121,11 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
     from one annotated frame to the next and keeps its identity; ``fps``: the predictor's speed,
     only reported.
 
-    Returns ``frames``, ``gt``, ``pred``, ``matched`` (counts), ``recall``, ``precision`` (None when
-    there is no true, resp. predicted, head), ``median_angle_error_deg`` (None without matches),
-    ``id_switches``, and the ``radius``, ``link`` and ``fps`` used.
+    Returns ``frames`` (scored: the frames of ``gt``), ``gt``, ``pred``, ``matched`` (counts on
+    them), ``recall``, ``precision`` (None when there is no true, resp. predicted, head),
+    ``median_angle_error_deg`` (None without matches), ``id_switches``, ``unscored_frames`` and
+    ``unscored_pred`` (the predicted frames with heads that ``gt`` does not have, and their heads),
+    and the ``radius``, ``link`` and ``fps`` used.
     """
     radius = float(check_range("radius", radius, 0, MAX_COORD, lo_open=True))
     link = float(check_range("link", link, 0, MAX_COORD, lo_open=True))
@@ -128,13 +135,14 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
     pred = _arrays(pred, 6, "predictions")
     _check_common_frames(gt, pred)
     identities = _gt_identities(gt, link)
-    empty_gt, empty_pred = np.zeros((0, 4)), np.zeros((0, 6))
+    empty_pred = np.zeros((0, 6))
     last_track: dict[int, int] = {}          # true identity -> track it was last matched to
-    frames = sorted(set(gt) | set(pred))
+    frames = sorted(gt)
+    unscored = [len(p) for f, p in pred.items() if f not in gt and len(p)]
     n_gt = n_pred = switches = 0
     errors: list[float] = []
     for frame in frames:
-        g = gt.get(frame, empty_gt)
+        g = gt[frame]
         p = pred.get(frame, empty_pred)
         n_gt += len(g)
         n_pred += len(p)
@@ -159,6 +167,8 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
         "precision": matched / n_pred if n_pred else None,
         "median_angle_error_deg": float(np.median(errors)) if errors else None,
         "id_switches": switches,
+        "unscored_frames": len(unscored),
+        "unscored_pred": sum(unscored),
         "radius": radius,
         "link": link,
         "fps": fps,
@@ -182,6 +192,9 @@ def format_report(result: dict) -> str:
         lines.append(f"shaft angle: median error {result['median_angle_error_deg']:.1f}° "
                      f"over {result['matched']} matched heads")
     lines.append(f"identity switches: {result['id_switches']}")
+    if result.get("unscored_frames"):
+        lines.append(f"not scored: {result['unscored_pred']} predicted heads on {result['unscored_frames']} frames "
+                     "that are not annotated")
     if result.get("fps") is not None:
         lines.append(f"speed: {result['fps']:.1f} frames/s")
     return "\n".join(lines)

@@ -18,14 +18,17 @@ Their Gaussians are multiplied (:func:`~artmotion.tracking.pote.fuse`). The shaf
 head's size come from the detector (the image), smoothed; while no detection supports a head the
 angle turns with the camera. A head is reported while detections support it or for at most
 ``coast`` frames without; it is dropped after ``max_miss`` frames. Identities persist: a head is
-born from a detection that no head explains (score at least ``birth``).
+born from a detection that no head explains (score at least ``birth``), and is confirmed by a
+detection on a second frame; then its earlier frames are reported too (as a person's track is
+from its first detection): :func:`track_tools` holds a frame back while a tentative head may still
+add its row to it. A head seen on one frame only is not reported.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import cv2
@@ -54,6 +57,7 @@ class _Head:
     score: float
     hits: int = 1
     miss: int = 0
+    early: list[tuple[int, list[float]]] = field(default_factory=list)  # (frame, row) while tentative
 
 
 def _window(h: _Head, r: float, shape: tuple[int, ...]) -> tuple[int, int, int, int] | None:
@@ -81,7 +85,11 @@ def _check_detections(detections, what: str) -> np.ndarray:
 
 class ToolTracker:
     """Frame-by-frame tracker of instrument heads; :meth:`update` returns the reported rows
-    ``(k, 6)``: track, x, y, size, angle, score.
+    ``(k, 6)``: track, x, y, size, angle, score, of confirmed heads (a detection on 2 frames).
+    A head confirmed by this frame's detection adds the rows of its earlier, tentative frames to
+    ``late`` (``(frame index, row)``, frames counted from 0 in ``frame``); ``settled``: the frames
+    before it get no more late rows. ``capped``: frames on which the detector's cap of heads a
+    frame (``max_heads_``) left out a detection that could have started a head (``birth``).
 
     Pixel settings (``detect_std``, ``accel``, ``gate``, ``merge``, the experts' windows) are in pixels
     of the detector's training frames; a video of another size scales them by its size (as the
@@ -113,6 +121,9 @@ class ToolTracker:
         self._dis: Any = None  # cv2.DISOpticalFlow, made on first use
         self._px = 1.0  # pixels of this video per pixel of the detector's training frames (first frame)
         self.heads: list[_Head] = []
+        self.frame = -1
+        self.late: list[tuple[int, list[float]]] = []
+        self.capped = 0
         self._next_id = 0
         self._prev: np.ndarray | None = None
         self._bg: np.ndarray | None = None
@@ -201,6 +212,11 @@ class ToolTracker:
             trained = getattr(self.detector, "frame_shape_", None)
             self._px = 1.0 if trained is None else 1.0 / scale_to(trained, grey.shape[:2])
         D = _check_detections(self.detector.detect(frame), "the detector's detections") if given is None else given
+        cut = getattr(self.detector, "left_out_", None) if given is None else None
+        if cut is not None and len(cut) and cut[0] >= self.birth:
+            self.capped += 1
+        self.frame += 1
+        self.late = []
         A = self._camera(grey)
         klt = self._klt(grey)
         dense = self._flow(grey)
@@ -248,29 +264,65 @@ class ToolTracker:
         for h in keep:
             if all(math.hypot(*(h.x[:2] - o.x[:2])) > self.merge * self._px for o in self.heads):
                 self.heads.append(h)
-        rows = [[h.id, h.x[0], h.x[1], h.size, h.angle, h.score] for h in sorted(self.heads, key=lambda h: h.id)
-                if h.miss <= self.coast and h.hits >= 2]
+        rows = []
+        for h in sorted(self.heads, key=lambda h: h.id):
+            row = [h.id, h.x[0], h.x[1], h.size, h.angle, h.score]
+            if h.hits < 2:  # tentative: its row waits for its confirmation
+                if h.miss <= self.coast:
+                    h.early.append((self.frame, row))
+                continue
+            self.late += h.early
+            h.early = []
+            if h.miss <= self.coast:
+                rows.append(row)
         for j, d in enumerate(D):
             # a detection no head explains starts one, unless it lies on a head (a second response)
             if j not in used and d[4] >= self.birth and all(math.hypot(*(d[:2] - h.x[:2])) > self.merge * self._px
                                                              for h in self.heads):
                 P = np.diag([self.detect_std**2, self.detect_std**2, 100.0, 100.0]) * self._px**2
                 self.heads.append(_Head(self._next_id, np.array([d[0], d[1], 0.0, 0.0]), P, float(d[2]), float(d[3]),
-                                        float(d[4])))
+                                        float(d[4]), early=[(self.frame, [self._next_id, *map(float, d)])]))
                 self._next_id += 1
         self._prev = grey
         return np.array(rows, dtype=float).reshape(-1, 6)
 
-
-def track_tools(frames: Iterable[tuple[int, np.ndarray]], detector, **options) -> Iterator[tuple[int, np.ndarray]]:
-    """Track the instruments of ``(frame number, BGR image)`` pairs; yields ``(frame number, rows)``
-    with rows ``(k, 6)``: track, x, y, size, angle, score (see :class:`ToolTracker`)."""
-    tracker = ToolTracker(detector, **options)
-    for no, img in frames:
-        yield no, tracker.update(img)
+    @property
+    def settled(self) -> int:
+        """The first frame (index) a tentative head may still add a late row to (every frame before
+        it is final); the next frame's when there is none."""
+        return min((h.early[0][0] for h in self.heads if h.early), default=self.frame + 1)
 
 
-def track_sequence(seq, detector, progress: bool = False, **options) -> Iterator[tuple[int, np.ndarray]]:
+def track_tools(frames: Iterable[tuple], detector, tracker: ToolTracker | None = None,
+                **options) -> Iterator[tuple[int, np.ndarray]]:
+    """Track the instruments of ``(frame number, BGR image)`` pairs (or ``(frame number, BGR image,
+    detections)``: the detector's output given, as a benchmark reuses it); yields ``(frame number,
+    rows)`` with rows ``(k, 6)``: track, x, y, size, angle, score (see :class:`ToolTracker`), each
+    frame once no tentative head can add its row to it any more (with the rows of the heads
+    confirmed later). ``tracker``: the :class:`ToolTracker` to use (to read its counts after), else
+    one of ``detector`` and ``options``."""
+    tracker = ToolTracker(detector, **options) if tracker is None else tracker
+    pending: dict[int, tuple[int, list]] = {}  # frame index -> (frame number, rows), in order
+
+    def done(k: int) -> tuple[int, np.ndarray]:
+        no, rows = pending.pop(k)
+        out = np.array(rows, dtype=float).reshape(-1, 6)
+        return no, out[np.argsort(out[:, 0], kind="stable")]
+
+    for item in frames:
+        no, img = item[0], item[1]
+        rows = tracker.update(img, item[2] if len(item) > 2 else None)
+        pending[tracker.frame] = (no, rows.tolist())
+        for k, row in tracker.late:
+            pending[k][1].append(row)
+        while pending and next(iter(pending)) < tracker.settled:
+            yield done(next(iter(pending)))
+    while pending:
+        yield done(next(iter(pending)))
+
+
+def track_sequence(seq, detector, progress: bool = False, tracker: ToolTracker | None = None,
+                   **options) -> Iterator[tuple[int, np.ndarray]]:
     """:func:`track_tools` over an opened :class:`~artmotion.io.sequence.Sequence` (1-based
     frame numbers), with a progress bar when ``progress``."""
     frames = seq.frames()
@@ -278,7 +330,7 @@ def track_sequence(seq, detector, progress: bool = False, **options) -> Iterator
         from tqdm import tqdm
 
         frames = tqdm(frames, total=len(seq), unit="frame", leave=False)
-    yield from track_tools(frames, detector, **options)
+    yield from track_tools(frames, detector, tracker, **options)
 
 
 def to_mot(pred: Iterable[tuple[int, np.ndarray]]) -> np.ndarray:

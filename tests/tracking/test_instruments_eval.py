@@ -339,3 +339,17 @@ def test_sparse_annotations_score_only_the_annotated_frames(tmp_path, run_cli):
     code, out, err = run_cli("tool", "eval", gt_csv, tmp_path / "pred.csv")
     assert code == 0, err
     assert "precision 1.000 (12/12)" in out and "not scored: 48 predicted heads on 24 frames" in out
+
+
+def test_a_frame_on_the_annotations_grid_without_a_row_shows_no_instrument():
+    """Annotations of every frame with a gap (no instrument in view): a prediction there is a false
+    one, as it is on an every-5th frame without rows; frames off the grid are not scored."""
+    from artmotion.tracking.instruments.evaluate import annotated_frames
+
+    heads = _two_tools(12)
+    pred = _pred({f: [(i, *h) for i, h in enumerate(hs)] for f, hs in heads.items()})
+    gt = _gt({f: hs for f, hs in heads.items() if f != 6})
+    res = evaluate_tools(gt, pred)
+    assert res["precision"] == pytest.approx(22 / 24) and res["unscored_frames"] == 0
+    assert annotated_frames(_gt({0: heads[0], 10: heads[10], 25: heads[0]})) == [0, 5, 10, 15, 20, 25]
+    assert annotated_frames({}) == []

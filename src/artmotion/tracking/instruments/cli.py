@@ -156,10 +156,10 @@ def evaluate(
 ):
     """Score predictions: recall and precision of heads within --radius px, shaft angle error, identity switches.
 
-    Only the frames GT.csv has rows for are scored: a frame without a row may be one nobody annotated
-    (every 5th frame, a stretch of the video), so the predictions on it are not counted as false,
-    only reported as not scored. (A frame annotated as holding no instrument cannot be written in
-    GT.csv, so false heads on such a frame are not seen.)"""
+    Only annotated frames are scored: those from GT.csv's first frame to its last, in the step of
+    the frames it names (every frame, every 5th); one of them without a row shows no instrument.
+    Predictions on other frames (nobody annotated them) are not counted as false, only reported as
+    not scored."""
     import json
 
     from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv

@@ -1,18 +1,19 @@
 """Scores of instrument predictions against ``tools.csv`` annotations.
 
-Only annotated frames are scored: the frames of ``gt``. A ``tools.csv`` names a frame only when it
-has an instrument (its rows); a frame it does not name may be one nobody annotated (every 5th frame,
-a stretch of the video), and the predictions on it cannot be judged: they are left out of the score
+Only annotated frames are scored (:func:`annotated_frames`). A ``tools.csv`` names a frame only
+when it has an instrument (its rows); the frames it covers are those from its first to its last in
+the step of the frames it names (every frame, or every 5th): a frame on that grid without a row
+shows no instrument, and its predictions are false ones; a frame off the grid or outside the range
+is one nobody annotated, and the predictions on it cannot be judged: they are left out of the score
 and counted (``unscored_frames``, ``unscored_pred``), so that perfect predictions on every frame
-against annotations of every 5th score a precision of 1, not 0.2. (False heads on a frame without
-instrument are therefore not seen from a ``tools.csv``; a frame given in ``gt`` with an empty array
-is annotated and scored.) On each scored frame, predicted heads are matched one-to-one to the true
-heads with the Hungarian algorithm on the Euclidean distance between heads, pairs farther apart than
-``radius`` px being no match. Among the matchings the most pairs within the radius is taken; among
-those, the one that continues the most matches of earlier frames (a true instrument kept on the
-track it was last matched to, as CLEAR MOT does); among those, the one of least total distance.
-Recall is matched / true heads, precision matched / predicted heads, and the shaft angle error of a
-matched pair the absolute difference of the two angles, wrapped, in degrees in ``[0, 180]``.
+against annotations of every 5th score a precision of 1, not 0.2. On each scored frame, predicted
+heads are matched one-to-one to the true heads with the Hungarian algorithm on the Euclidean
+distance between heads, pairs farther apart than ``radius`` px being no match. Among the matchings
+the most pairs within the radius is taken; among those, the one that continues the most matches of
+earlier frames (a true instrument kept on the track it was last matched to, as CLEAR MOT does);
+among those, the one of least total distance. Recall is matched / true heads, precision matched /
+predicted heads, and the shaft angle error of a matched pair the absolute difference of the two
+angles, wrapped, in degrees in ``[0, 180]``.
 
 The annotations' ``tool`` index is no identity (the order of the instruments changes), so the true
 heads are first linked from each annotated frame to the next one into identities (Hungarian on
@@ -111,6 +112,18 @@ def _angle_error_deg(a: float, b: float) -> float:
     return math.degrees(min(d, math.tau - d))
 
 
+def annotated_frames(gt: dict[int, np.ndarray]) -> list[int]:
+    """The frames an annotation covers: from its first frame to its last in the step every frame
+    it names lies on (the greatest common divisor of their gaps: 1 for annotations of every frame,
+    5 for every 5th). A frame on that grid without a row is annotated as showing no instrument (its
+    predictions are false ones); a frame off it, or outside the range, nobody annotated."""
+    named = sorted(gt)
+    if not named:
+        return []
+    step = int(np.gcd.reduce(np.diff(named))) if len(named) > 1 else 1
+    return list(range(named[0], named[-1] + 1, max(step, 1)))
+
+
 def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radius: float = 15.0,
                    fps: float | None = None, link: float = 40.0) -> dict:
     """Score predicted instrument heads against annotations (see the module doc).
@@ -121,7 +134,7 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
     from one annotated frame to the next and keeps its identity; ``fps``: the predictor's speed,
     only reported.
 
-    Returns ``frames`` (scored: the frames of ``gt``), ``gt``, ``pred``, ``matched`` (counts on
+    Returns ``frames`` (scored: :func:`annotated_frames`), ``gt``, ``pred``, ``matched`` (counts on
     them), ``recall``, ``precision`` (None when there is no true, resp. predicted, head),
     ``median_angle_error_deg`` (None without matches), ``id_switches``, ``unscored_frames`` and
     ``unscored_pred`` (the predicted frames with heads that ``gt`` does not have, and their heads),
@@ -135,14 +148,15 @@ def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radiu
     pred = _arrays(pred, 6, "predictions")
     _check_common_frames(gt, pred)
     identities = _gt_identities(gt, link)
-    empty_pred = np.zeros((0, 6))
+    empty_gt, empty_pred = np.zeros((0, 4)), np.zeros((0, 6))
     last_track: dict[int, int] = {}          # true identity -> track it was last matched to
-    frames = sorted(gt)
-    unscored = [len(p) for f, p in pred.items() if f not in gt and len(p)]
+    frames = annotated_frames(gt)
+    scored = set(frames)
+    unscored = [len(p) for f, p in pred.items() if f not in scored and len(p)]
     n_gt = n_pred = switches = 0
     errors: list[float] = []
     for frame in frames:
-        g = gt[frame]
+        g = gt.get(frame, empty_gt)
         p = pred.get(frame, empty_pred)
         n_gt += len(g)
         n_pred += len(p)

@@ -181,6 +181,9 @@ def test_eval_bad_input(tmp_path, run_cli):
     _write_index(d, [_row(i) for i in range(3)])
     code, _, err = run_cli("grounding", "eval", d)
     _one_line_error(code, err, "too few examples (3)")
+    # the index CSV given instead of its folder: the default output folder is beside it, not under it
+    code, _, err = run_cli("grounding", "eval", d / "index.csv")
+    _one_line_error(code, err, "too few examples (3)")
 
 
 def test_dataset_without_espeak(tmp_path, run_cli, monkeypatch):

@@ -116,8 +116,9 @@ def grounding_dataset(
 
 @grounding_app.command("eval")
 def grounding_eval(
-    dataset: Path = typer.Argument(..., help="Folder made by 'artmotion grounding dataset'."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Folder for report.json and PNGs (default DATASET/eval)."),
+    dataset: Path = typer.Argument(..., help="Folder made by 'artmotion grounding dataset', or its index CSV."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for report.json and PNGs (default: eval in the "
+                                       "dataset's folder)."),
     seed: int = typer.Option(0, "--seed", help="Random seed of folds and dictionary learning."),
     as_json: bool = typer.Option(False, "--json", help="Print the accuracies as JSON."),
 ):
@@ -126,7 +127,7 @@ def grounding_eval(
     from artmotion.language.grounding.evaluate import evaluate, format_report
 
     check_seed(seed)
-    out = out if out is not None else Path(dataset) / "eval"
+    out = out if out is not None else (dataset if dataset.is_dir() else dataset.parent) / "eval"
     check_writable(out / "report.json")  # before the evaluation
     report = evaluate(dataset, out=out, seed=seed)
     if as_json:

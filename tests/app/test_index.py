@@ -52,6 +52,41 @@ def test_parse_query():
     assert (q.subject, q.track, q.verb, q.direction, q.unknown) == ("person", 3, "exits", "left", [])
     assert parse_query("man in red exits").unknown == ["man", "red"]
     assert parse_query("people walking together").verb == "interacts"
+    # a number after "frame" is a frame, before "people" a count, else the track (its sign kept)
+    q = parse_query("who enters at frame 21")
+    assert (q.verb, q.frame, q.track) == ("enters", 21, None)
+    assert parse_query("2 people walk together").track is None
+    assert parse_query("person -5 exits").track == -5
+    assert (parse_query("person 3 at frame 40").track, parse_query("person 3 at frame 40").frame) == (3, 40)
+    # the grammar's two-person motions are verbs of their own, not "moves" (nor a direction)
+    assert parse_query("move apart").verb == "moves apart"
+    assert (parse_query("move away from each other").verb, parse_query("move away from each other").direction) \
+        == ("moves apart", None)
+    assert parse_query("people moving towards each other").verb == "approach each other"
+    assert parse_query("person moves towards the bottom").direction == "downwards"
+
+
+def test_two_people_moving_apart_are_found_before_anyone_moving(tmp_path):
+    """'move apart' listed every 'Person N moves right' first (both filed as 'moves', same score)."""
+    run = make_run(tmp_path, "pair", [
+        S("Person 1 moves right (frames 1-20).", "moves", "right", [1], 1, 20),
+        S("Person 1 and person 2 move apart (frames 5-20).", "move apart", None, [1, 2], 5, 20),
+        S("Person 1 and person 2 move towards each other (frames 21-30).", "move towards each other", None,
+          [1, 2], 21, 30),
+    ])
+    with EventIndex(tmp_path / "db.sqlite") as idx:
+        idx.add_run(run)
+        assert [h.sentence for h in idx.search("move apart")] == ["Person 1 and person 2 move apart (frames 5-20)."]
+        assert [h.frame_start for h in idx.search("who moves towards each other")] == [21]
+        assert [h.frame_start for h in idx.search("person moves")] == [1]
+
+
+def test_a_frame_number_is_a_moment_not_a_track(index):
+    """'exits at frame 50' looked for track 50 and answered "no match"."""
+    hits = index.search("exits at frame 50")
+    assert [h.sentence for h in hits] == ["Person 1 exits to the right (frames 50-50)."]
+    assert [h.sentence for h in index.search("frame 20 moves")] == ["Person 1 moves left and downwards (frames 5-40)."]
+    assert index.search("exits at frame 51") == []
 
 
 def test_structured_search_best_first(index):
@@ -131,6 +166,15 @@ def test_cli_add_and_search_json(index, tmp_path, run_cli):
     assert code == 0 and hits[0]["video"] == "campus" and hits[0]["frame_start"] == 1
     code, out, _ = run_cli("search", "zebra", "--db", db)
     assert code == 1 and "no match" in out
+    # a copy of a run (the same source): it replaces the entry, and says so ("added" both, 1 video)
+    import shutil
+
+    shutil.copytree(tmp_path / "campus", tmp_path / "copies" / "campus2")
+    code, out, _ = run_cli("index", "add", tmp_path / "copies" / "campus2", "--db", db)
+    assert code == 0 and f"(replacing {(tmp_path / 'campus').resolve()}: a run of the same source)" in out
+    assert "2 videos" in out
+    code, out, _ = run_cli("index", "add", tmp_path / "copies" / "campus2", "--db", db)
+    assert code == 0 and "(again)" in out
 
 
 def test_runs_are_added_all_or_none(index, tmp_path, monkeypatch):

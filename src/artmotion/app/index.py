@@ -76,6 +76,9 @@ VERBS = {
     "opens": ("open", "opens", "opened", "opening"),
     "closes": ("close", "closes", "closed", "closing"),
     "stays": ("stay", "stays", "stands", "waits", "still"),
+    # the grammar's "move apart" and "move towards each other" (two people), before plain motion
+    "moves apart": ("apart", "diverge", "diverges", "diverging"),
+    "approach each other": ("approach", "approaches", "approaching", "closer", "converge", "converges"),
     "moves": ("move", "moves", "moved", "moving", "walk", "walks", "walking", "runs", "run", "goes"),
 }
 DIRECTIONS = {
@@ -99,19 +102,27 @@ class Query:
     verb: str | None = None
     direction: str | None = None
     unknown: list[str] = field(default_factory=list)
+    frame: int | None = None
 
     @property
     def structured(self) -> bool:
-        return any(v is not None for v in (self.subject, self.track, self.verb, self.direction))
+        return any(v is not None for v in (self.subject, self.track, self.verb, self.direction, self.frame))
 
 
 def parse_query(text: str) -> Query:
-    """Parse ``"person 3 exits left"`` into subject, track id, verb and direction."""
+    """Parse ``"person 3 exits left at frame 40"`` into subject, track id, verb, direction and
+    frame. A number after ``frame`` is a frame (the moment must span it), one before ``people`` a
+    count (ignored), any other the track id (a leading minus kept: ids may be negative). (A number
+    was always a track id: "who enters at frame 21" looked for track 21 and found nothing.)"""
     q = Query(text=text)
-    words = re.findall(r"[a-z]+|\d+", text.lower())
-    for word in words:
-        if word.isdigit():
-            q.track = int(word) if q.track is None else q.track
+    words = re.findall(r"-?\d+|[a-z]+", text.lower())
+    for i, word in enumerate(words):
+        if word.lstrip("-").isdigit():
+            before, after = words[i - 1] if i else "", words[i + 1] if i + 1 < len(words) else ""
+            if before in ("frame", "frames"):
+                q.frame = int(word) if q.frame is None else q.frame
+            elif after not in ("people", "persons", "tools") and q.track is None:
+                q.track = int(word)
         elif word in SUBJECTS:
             q.subject = {"people": "person", "persons": "person", "tools": "tool", "grasper": "tool"}.get(word, word)
         elif any(word in forms for forms in DIRECTIONS.values()):
@@ -119,6 +130,10 @@ def parse_query(text: str) -> Query:
         elif word not in STOPWORDS and not any(word in forms for forms in VERBS.values()):
             q.unknown.append(word)
     q.verb = next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
+    if "each other" in text.lower():     # "towards" / "away" is then no direction in the image
+        for word, verb in (("towards", "approach each other"), ("away", "moves apart")):
+            if word in words:
+                q.verb, q.direction = verb, None
     return q
 
 
@@ -195,19 +210,20 @@ class EventIndex:
         returns the video name. ``run``: its manifest, if already read (:func:`load_run`)."""
         from artmotion.app.pipeline import load_run
 
-        return self.add_runs([(run_dir, run if run is not None else load_run(run_dir))])[0]
+        return self.add_runs([(run_dir, run if run is not None else load_run(run_dir))])[0][0]
 
-    def add_runs(self, runs: list[tuple[str | os.PathLike, dict]]) -> list[str]:
+    def add_runs(self, runs: list[tuple[str | os.PathLike, dict]]) -> list[tuple[str, str | None]]:
         """Add the videos of run folders, each with its manifest (:func:`load_run`), in one
-        transaction: all are indexed or none (a full disk half-way left some added, unsaid)."""
+        transaction: all are indexed or none (a full disk half-way left some added, unsaid).
+        Returns each video's name and the run folder of the entry it replaced (the same source
+        indexed before, or earlier in ``runs``: two copies of one run), else ``None``."""
         if not self.write:
             raise InputError("the index is open read-only", path=self.path)
-        names = []
+        added = []
         with self._errors(), self.conn:
             for run_dir, run in runs:
-                self._insert(run, run["name"], _source_key(run, run_dir), run_dir)
-                names.append(run["name"])
-        return names
+                added.append((run["name"], self._insert(run, run["name"], _source_key(run, run_dir), run_dir)))
+        return added
 
     @contextlib.contextmanager
     def _errors(self):
@@ -227,7 +243,8 @@ class EventIndex:
             raise InputError(f"damaged index ({msg}); build a new one with 'artmotion index add'",
                              path=self.path) from None
 
-    def _insert(self, run: dict, name: str, source: str, run_dir) -> None:
+    def _insert(self, run: dict, name: str, source: str, run_dir) -> str | None:
+        old = self.conn.execute("SELECT run_dir FROM videos WHERE source = ?", (source,)).fetchone()
         self.conn.execute(
             "DELETE FROM sentences_fts WHERE sid IN"
             " (SELECT s.id FROM sentences s JOIN videos v ON v.id = s.video_id WHERE v.source = ?)",
@@ -257,6 +274,7 @@ class EventIndex:
                  json.dumps(s.get("tracks", [])), s.get("frame_start"), s.get("frame_end")),
             )
             self.conn.execute("INSERT INTO sentences_fts(sentence, sid) VALUES (?, ?)", (s["sentence"], cur.lastrowid))
+        return None if old is None else old[0]
 
     def videos(self) -> list[dict]:
         """Every indexed video: name, source path, frames, fps and its counts of tracks, events and
@@ -300,7 +318,7 @@ class EventIndex:
                 raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)",
                                  path=self.path)
             hits = self._structured(q, video) if q.structured else []
-            if not hits and (q.unknown or not q.structured):
+            if not hits:      # (also what an index made before a verb was told apart files it under)
                 hits = self._fulltext(text, video)
         hits.sort(key=lambda h: (-h.score, h.video, h.frame_start or 0))
         return hits[:limit]
@@ -324,10 +342,12 @@ class EventIndex:
         hits = []
         where, params = (" AND s.action = ?", (q.verb,)) if q.verb is not None else ("", ())
         best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
-            + 1.0 * (q.subject is not None)
+            + 1.0 * (q.subject is not None) + 1.0 * (q.frame is not None)
         for name, src, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
             track_ids = json.loads(tracks)
             if q.track is not None and q.track not in track_ids:
+                continue
+            if q.frame is not None and not (f0 is not None and f0 <= q.frame <= (f1 if f1 is not None else f0)):
                 continue
             direction_ok = q.direction is not None and q.direction in (adjective or "").split()
             if q.verb is None and q.direction is not None and not direction_ok:
@@ -335,7 +355,8 @@ class EventIndex:
             subject_ok = q.subject is not None and q.subject == subject
             if q.subject is not None and q.verb is None and q.direction is None and q.track is None and not subject_ok:
                 continue
-            score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok
+            score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok \
+                + 1.0 * (q.frame is not None)
             hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir,
                             source=src))
         return hits
@@ -375,6 +396,8 @@ def _canon_verb(verb: str | None) -> str | None:
     """The query vocabulary's verb for one of the grammar's (``"walk together"`` → ``interacts``)."""
     if verb is None:
         return None
+    if "towards each other" in verb.lower():
+        return "approach each other"
     words = verb.lower().split()
     return next((v for v, forms in VERBS.items() if v in words or any(w in forms for w in words)), verb.lower())
 

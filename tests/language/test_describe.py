@@ -228,7 +228,8 @@ def test_cli_describe_bad_input(tmp_path, run_cli):
     code, out, err = run_cli("describe", res, "--events", ev)
     assert code == 2 and "ev.jsonl:1" in err
     for line, needle in (('{"type": "enter", "frame": 3, "tracks": [99], "side": "left"}', "track 99"),
-                         ('{"type": "enter", "frame": 100000, "tracks": [1], "side": "left"}', "after the results end")):
+                         ('{"type": "enter", "frame": 100000, "tracks": [1], "side": "left"}', "after the results end"),
+                         ('{"type": "merge", "frame": 3, "end_frame": 9000000, "tracks": [1, 2]}', "ends at frame 9000000")):
         ev.write_text(line + "\n")  # (events of other results: not a person 99 entering)
         code, out, err = run_cli("describe", res, "--events", ev)
         assert code == 2 and "ev.jsonl" in err and needle in err and err.count("\n") == 1

@@ -75,6 +75,9 @@ def describe_cmd(
             if ev["frame"] > last + 1:
                 raise InputError(f"event {n} is at frame {ev['frame']}, after the results end (frame {last})",
                                  path=events)
+            if ev.get("end_frame", ev["frame"]) > last + 1:   # (a span told as lasting past the results)
+                raise InputError(f"event {n} ends at frame {ev['end_frame']}, after the results end (frame {last})",
+                                 path=events)
         if pose_track is not None and pose_track not in ids:
             raise InputError(f"--pose-track {pose_track}: no such track in the results", path=results)
         first = int(rows[:, 0].min())

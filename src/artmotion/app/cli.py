@@ -37,16 +37,17 @@ def _db_path(db: Optional[Path], must_exist: bool = False) -> Path:
     return path
 
 
-def _add_runs(db: Path, runs: list[Path]) -> int:
+def _add_runs(db: Path, runs: list[Path]) -> tuple[int, list[str | None]]:
     """Read and check every run's manifest, then add them all to the index at ``db`` (created
-    atomically if new); returns the number of videos in it."""
+    atomically if new); returns the number of videos in it and, per run, the run folder of the
+    entry it replaced (the same source), if any."""
     from artmotion.app.index import building
     from artmotion.app.pipeline import load_run
 
     manifests = [(run, load_run(run)) for run in runs]
     with building(db) as idx:
-        idx.add_runs(manifests)
-        return len(idx.videos())
+        added = idx.add_runs(manifests)
+        return len(idx.videos()), [old for _, old in added]
 
 
 def _label(name: str, source: str | None, shared: set) -> str:
@@ -131,9 +132,11 @@ def index_add(
     """Add runs to the event index (a run of a source already there replaces it)."""
     db_path = _db_path(db)
     runs = _run_dirs(path)
-    count = _add_runs(db_path, runs)
-    for run in runs:
-        typer.echo(f"added {run}")
+    count, replaced = _add_runs(db_path, runs)
+    for run, old in zip(runs, replaced):
+        same = old is not None and Path(old) == run.resolve()
+        typer.echo(f"added {run}" + ("" if old is None else " (again)" if same else
+                                     f" (replacing {old}: a run of the same source)"))
     typer.echo(f"{db_path}: {count} videos")
 
 
@@ -219,7 +222,7 @@ def batch_cmd(
     for o in skipped:
         typer.echo(f"skipped  {Path(o.item).name}: already finished")
     if db is not None and done + skipped:
-        count = _add_runs(db, [Path(o.out_dir) for o in done + skipped])
+        count, _ = _add_runs(db, [Path(o.out_dir) for o in done + skipped])
         typer.echo(f"indexed {len(done) + len(skipped)} runs in {db} ({count} videos)")
     typer.echo(f"{len(done)} done, {len(skipped)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
                f" on {report.workers} worker(s)")

@@ -165,6 +165,15 @@ def test_times_with_fps():
     assert t.to_dict()["times"] == [0.9, 0.9]
 
 
+def test_a_stretch_of_two_frames_is_not_told_as_an_instant():
+    """At 25 frames/s, frames 63-64 were "from 2.5 s to 2.5 s"; as many decimals as tell the ends apart."""
+    t = Triplet("Person 12", "stays", None, frames=(63, 64), times=(62 / 25, 63 / 25))
+    assert render(t) == "Person 12 stays in place from 2.48 s to 2.52 s (frames 63-64)."
+    t = Triplet("Person 1", "stays", None, frames=(10, 40), times=(0.9, 3.9))
+    assert "from 0.9 s to 3.9 s" in render(t)
+    assert "from 0.000 s to 0.001 s" in render(Triplet("Person 1", "stays", None, frames=(1, 2), times=(0.0, 0.001)))
+
+
 def test_grammar_rejects_words_outside_it():
     with pytest.raises(ValueError):
         render(Triplet("Person 1", "flies", None))

@@ -74,10 +74,15 @@ def noun_phrase(cls: str, track: int | None, *, capital: bool) -> str:
 
 
 def _span(frames: tuple[int, int], times: tuple[float, float] | None) -> str:
+    """The moment or the stretch of a sentence; times to 0.1 s, or as many more decimals (up to 4)
+    as tell a stretch's two ends apart ("from 2.5 s to 2.5 s (frames 63-64)" read as an instant)."""
     a, b = frames
     if times is not None:
         ta, tb = times
-        return f"at {ta:.1f} s (frame {a})" if a == b else f"from {ta:.1f} s to {tb:.1f} s (frames {a}-{b})"
+        d = 1
+        while a != b and d < 4 and f"{ta:.{d}f}" == f"{tb:.{d}f}":
+            d += 1
+        return f"at {ta:.1f} s (frame {a})" if a == b else f"from {ta:.{d}f} s to {tb:.{d}f} s (frames {a}-{b})"
     return f"at frame {a}" if a == b else f"from frame {a} to frame {b}"
 
 

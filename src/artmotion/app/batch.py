@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from artmotion._native import signals_held
-from artmotion.app.pipeline import is_finished
+from artmotion.app.pipeline import is_finished, load_run
 from artmotion.errors import ArtmotionError, InputError, Interrupted
 from artmotion.io import check_apart
 from artmotion.io.atomic import check_can_create_in
@@ -205,8 +205,6 @@ class BatchReport:
 def _finished_by(out_dir: str, batch: str | None, item: str | None = None) -> ItemOutcome | None:
     """The outcome of the run in ``out_dir`` when batch ``batch`` finished it (its manifest says
     so: an earlier batch's run, which ``--force`` runs again, is not), else ``None``."""
-    from artmotion.app.pipeline import load_run
-
     if batch is None or not is_finished(out_dir):
         return None
     try:
@@ -217,19 +215,6 @@ def _finished_by(out_dir: str, batch: str | None, item: str | None = None) -> It
         return None
     return ItemOutcome(item or str(run.get("source")), "done", out_dir, run.get("seconds") or 0.0,
                        tracks=len(run["track_summary"]), sentences=len(run["sentences"]))
-
-
-def _other_source(out_dir: Path, item: Path) -> str | None:
-    """The source whose finished run ``out_dir`` holds when it is not ``item`` (another archive's
-    video of the same name, batched into the same folder), else ``None``: that run is neither this
-    item's (to skip) nor this batch's to replace."""
-    from artmotion.app.pipeline import load_run
-
-    try:
-        source = load_run(out_dir).get("source")
-    except InputError:
-        return None
-    return source if source is not None and source != str(item.resolve()) else None
 
 
 def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | None = None) -> ItemOutcome:
@@ -312,11 +297,17 @@ def run_batch(
     report = BatchReport()
     todo: list[tuple[str, str]] = []
     for item_path, item_out in zip(items, outs):
-        other = _other_source(item_out, item_path)
-        if other is not None:
+        try:
+            run = load_run(item_out)
+        except InputError:
+            run = None
+        other = None if run is None else run.get("source")
+        if other is not None and other != str(item_path.resolve()):
+            # another archive's video of the same name, batched into the same folder: that run is
+            # neither this item's (to skip) nor this batch's to replace
             report.outcomes.append(ItemOutcome(str(item_path), "failed", str(item_out),
                                                message=f"{item_out} holds the run of {other}"))
-        elif not force and is_finished(item_out, item_path):
+        elif not force and run is not None and is_finished(item_out, item_path, run=run):
             report.outcomes.append(ItemOutcome(str(item_path), "skipped", str(item_out), message="already finished"))
         else:
             todo.append((str(item_path), str(item_out)))

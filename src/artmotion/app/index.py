@@ -87,6 +87,8 @@ DIRECTIONS = {
     "upwards": ("up", "upwards", "upward", "top", "north", "away"),
     "downwards": ("down", "downwards", "downward", "bottom", "south", "towards"),
 }
+#: phrases whose words alone would say something else ("towards" is a direction in the image)
+PHRASES = {"towards each other": "approach each other", "away from each other": "moves apart"}
 SUBJECTS = ("person", "tool", "people", "persons", "tools", "grasper", "object")
 STOPWORDS = {"a", "an", "the", "from", "to", "at", "in", "on", "of", "and", "who", "which", "frame", "frames",
              "track", "id", "side", "image", "scene", "one", "into", "group", "their", "is", "are"}
@@ -115,7 +117,11 @@ def parse_query(text: str) -> Query:
     count (ignored), any other the track id (a leading minus kept: ids may be negative). (A number
     was always a track id: "who enters at frame 21" looked for track 21 and found nothing.)"""
     q = Query(text=text)
-    words = re.findall(r"-?\d+|[a-z]+", text.lower())
+    text = text.lower()
+    phrase = next((verb for said, verb in PHRASES.items() if said in text), None)
+    for said in PHRASES:
+        text = text.replace(said, " ")
+    words = re.findall(r"-?\d+|[a-z]+", text)
     for i, word in enumerate(words):
         if word.lstrip("-").isdigit():
             before, after = words[i - 1] if i else "", words[i + 1] if i + 1 < len(words) else ""
@@ -129,11 +135,7 @@ def parse_query(text: str) -> Query:
             q.direction = next(d for d, forms in DIRECTIONS.items() if word in forms)
         elif word not in STOPWORDS and not any(word in forms for forms in VERBS.values()):
             q.unknown.append(word)
-    q.verb = next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
-    if "each other" in text.lower():     # "towards" / "away" is then no direction in the image
-        for word, verb in (("towards", "approach each other"), ("away", "moves apart")):
-            if word in words:
-                q.verb, q.direction = verb, None
+    q.verb = phrase or next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
     return q
 
 
@@ -396,8 +398,9 @@ def _canon_verb(verb: str | None) -> str | None:
     """The query vocabulary's verb for one of the grammar's (``"walk together"`` → ``interacts``)."""
     if verb is None:
         return None
-    if "towards each other" in verb.lower():
-        return "approach each other"
+    phrase = next((v for said, v in PHRASES.items() if said in verb.lower()), None)
+    if phrase is not None:
+        return phrase
     words = verb.lower().split()
     return next((v for v, forms in VERBS.items() if v in words or any(w in forms for w in words)), verb.lower())
 

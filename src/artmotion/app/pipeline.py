@@ -321,15 +321,17 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
     return manifest, tracks
 
 
-def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = None) -> bool:
+def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = None, run: dict | None = None) -> bool:
     """``run_dir`` holds a finished run: a manifest as :func:`run_pipeline` writes it, not merely
     a file called run.json (the user's own, or an empty one). With ``source``: a finished run of
     that input as it is now (the manifest names its path and its :func:`source_fingerprint`), not
-    of another video of the same name nor of a recording since replaced by a new one."""
-    try:
-        run = load_run(run_dir)
-    except InputError:
-        return False
+    of another video of the same name nor of a recording since replaced by a new one. ``run``: the
+    folder's manifest, if already read (:func:`load_run`)."""
+    if run is None:
+        try:
+            run = load_run(run_dir)
+        except InputError:
+            return False
     if source is None:
         return True
     if run.get("source") != str(Path(source).resolve()):

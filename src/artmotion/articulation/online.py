@@ -154,6 +154,11 @@ def curvature_occam(khat: float, sk: float, radius_range: tuple[float, float], m
     return float(math.log(max(float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(rho))), 1e-300)))
 
 
+def rounding_std(X: np.ndarray) -> float:
+    """The std of the rounding of values written on :func:`resolution`'s grid (uniform over a step)."""
+    return resolution(X) / math.sqrt(12.0)
+
+
 def resolution(X: np.ndarray, digits: int = 12) -> float:
     """The step of the decimal grid that every value of ``X`` lies on (``10**-d`` for the fewest
     decimals ``d <= digits`` that write them all; 0 when none does): values a log wrote with few
@@ -261,15 +266,13 @@ class _ModelFilter:
         D = np.zeros((o, c))
         if o == 1:
             D[0, c - 1] = 1.0
-        else:
-            k = min(o, c)
+        else:       # (c <= o) s_i = sum_d h_i^d / d! x_d for the first c derivatives x_d
             h = T[:c] - T[c - 1]
-            V = np.stack([h**i / math.factorial(i) for i in range(k)], axis=1)   # s_i = sum_d V_id x_d
-            D[:k] = np.linalg.solve(V[-k:], np.eye(k)) @ np.eye(k, c, c - k)
+            D[:c] = np.linalg.inv(np.stack([h**i / math.factorial(i) for i in range(c)], axis=1))
         for j in range(self.dof):
             x = D @ S[:c, j]
             P = r2 * (D @ D.T)
-            for d in range(min(o, c), o):
+            for d in range(c, o):
                 P[d, d] = 1e6 * (r2 + float(np.ptp(S[:, j])) ** 2 + 1e-300)
             self.x[j], self.P[j] = x, P
             for k in range(c, n):
@@ -303,13 +306,14 @@ class _ModelFilter:
         x = F @ self.x[j]
         P = F @ self.P[j] @ F.T + Q
         y = s - x[0]
-        sv = max(float(P[0, 0]), 0.0) + r2
+        p00 = max(float(P[0, 0]), 0.0)
+        sv = p00 + r2
         m = y * y / sv
         ll = self._t(m, 1, self._c1) - 0.5 * math.log(sv)
         r = r2
         if self.nu is not None and m > 1.0:
             r = r2 * (self.nu + m) / (self.nu + 1.0)
-            sv = P[0, 0] + r
+            sv = p00 + r
         K = P[:, 0] / sv
         self.x[j] = x + K * y
         # Joseph's form, (I - K H) P (I - K H)^T + K r K^T: the plain P - K H P lost positive
@@ -713,7 +717,7 @@ class OnlineEstimator:
         (:func:`resolution` ``/ sqrt(12)``, a uniform error over one step: noise-free positions of a
         drawer along an axis, printed to 4 decimals, were scored against a noise of 1e-9 and called
         static); and a relative 1e-9 of the data so that ``sigma^2 > 0``."""
-        return max(self.noise_floor, resolution(X) / math.sqrt(12.0),
+        return max(self.noise_floor, rounding_std(X),
                    1e-9 * max(float(np.ptp(X, axis=0).max()), float(np.abs(X).max())), 1e-100)
 
     def _fit_all(self):

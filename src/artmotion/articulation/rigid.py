@@ -284,20 +284,20 @@ def pose_noise(positions: np.ndarray, quats: np.ndarray) -> tuple[float, float]:
     values written with few decimals (:func:`~artmotion.articulation.online.resolution`
     ``/ sqrt(12)``) and 1e-9 of the data's extent. A fixed 5 mm called a drawer written in
     millimetres 'rigid' (its 1 mm noise 1,000 times the tolerance's scale)."""
-    from artmotion.articulation.online import resolution
+    from artmotion.articulation.online import rounding_std
 
     t = np.asarray(positions, dtype=float)
     q = np.asarray(quats, dtype=float)
-    scale = max(float(np.ptp(t)), float(np.abs(t).max()), 1e-300)
+    floors = (max(rounding_std(t), 1e-9 * max(float(np.ptp(t)), float(np.abs(t).max()), 1e-300)),
+              max(rounding_std(q), 1e-9))
     if len(t) < 3:
-        return max(resolution(t) / math.sqrt(12.0), 1e-9 * scale), max(resolution(q) / math.sqrt(12.0), 1e-9)
+        return floors
     R = Rotation.from_quat(q)
     steps = (R[1:] * R[:-1].inv()).as_rotvec()
     mad = 1.0 / (0.6745 * math.sqrt(6.0))
     pos = float(np.median(np.abs(np.diff(t, n=2, axis=0)))) * mad
     ang = float(np.median(np.abs(np.diff(steps, axis=0)))) * mad
-    return (max(pos, resolution(t) / math.sqrt(12.0), 1e-9 * scale),
-            max(ang, resolution(q) / math.sqrt(12.0), 1e-9))
+    return max(pos, floors[0]), max(ang, floors[1])
 
 
 def classify_poses(positions: np.ndarray, quats: np.ndarray, noise: float | None = 0.005, size: float = 0.1,

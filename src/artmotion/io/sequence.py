@@ -268,38 +268,32 @@ def _mp4_rate_stated(video: Path) -> bool:
             yield kind, body, at + size
             at += size
 
-    def child(fh, parent: tuple[int, int], kind: bytes) -> list[tuple[int, int]]:
-        return [(b, e) for k, b, e in boxes(fh, *parent) if k == kind]
+    def inside(fh, parents: list[tuple[int, int]], *path: bytes) -> list[tuple[int, int]]:
+        """(body, end) of the boxes along ``path`` (types) below ``parents``."""
+        for kind in path:
+            parents = [(b, e) for parent in parents for k, b, e in boxes(fh, *parent) if k == kind]
+        return parents
+
+    def read_at(fh, at: int, size: int) -> bytes:
+        fh.seek(at)
+        return fh.read(size)
 
     with open(video, "rb") as fh:
         end = fh.seek(0, os.SEEK_END)
-        fh.seek(4)
-        if fh.read(4) not in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip"):
+        if read_at(fh, 4, 4) not in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip"):
             return True
-        for moov in child(fh, (0, end), b"moov"):
-            for trak in child(fh, moov, b"trak"):
-                for mdia in child(fh, trak, b"mdia"):
-                    hdlr = child(fh, mdia, b"hdlr")
-                    if not hdlr:
-                        continue
-                    fh.seek(hdlr[0][0] + 8)                    # version/flags, pre_defined, handler_type
-                    if fh.read(4) != b"vide":
-                        continue
-                    for b, _ in child(fh, mdia, b"mdhd"):      # version 1 has 64-bit times before the scale
-                        fh.seek(b)
-                        version = fh.read(1)
-                        fh.seek(b + (20 if version == b"\x01" else 12))
-                        if int.from_bytes(fh.read(4), "big") == 0:
-                            return False
-                    for minf in child(fh, mdia, b"minf"):
-                        for stbl in child(fh, minf, b"stbl"):
-                            for b, e in child(fh, stbl, b"stts"):
-                                fh.seek(b + 4)
-                                n = int.from_bytes(fh.read(4), "big")
-                                table = fh.read(8 * min(n, (e - b - 8) // 8))
-                                deltas = (int.from_bytes(table[k + 4:k + 8], "big") for k in range(0, len(table), 8))
-                                if any(d == 0 for d in deltas):
-                                    return False
+        for mdia in inside(fh, [(0, end)], b"moov", b"trak", b"mdia"):
+            # the video track: its handler (version/flags, pre_defined, then handler_type) says "vide"
+            if not any(read_at(fh, b + 8, 4) == b"vide" for b, _ in inside(fh, [mdia], b"hdlr")):
+                continue
+            for b, _ in inside(fh, [mdia], b"mdhd"):      # version 1 has 64-bit times before the scale
+                if int.from_bytes(read_at(fh, b + (20 if read_at(fh, b, 1) == b"\x01" else 12), 4), "big") == 0:
+                    return False
+            for b, e in inside(fh, [mdia], b"minf", b"stbl", b"stts"):   # entries: (count, duration)
+                n = int.from_bytes(read_at(fh, b + 4, 4), "big")
+                table = fh.read(8 * min(n, (e - b - 8) // 8))
+                if any(table[k + 4:k + 8] == bytes(4) for k in range(0, len(table), 8)):
+                    return False
     return True
 
 

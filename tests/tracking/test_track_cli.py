@@ -199,3 +199,7 @@ def test_a_single_frame_says_why_it_has_no_track(run_cli, tmp_path, n):
     assert code == 0, err
     assert ("a track is confirmed by detections on 2 frames, and the input has 1" in out) == (n == 1)
     assert ("0 tracks" in out) == (n == 1)
+    code, out, err = run_cli("run", root, "--out", tmp_path / f"run{n}")  # the same summary line's reason
+    assert code == 0, err
+    assert ("0 tracks, 0 events, 0 sentences" in out) == (n == 1)
+    assert ("s: a track is confirmed by detections on 2 frames, and the input has 1" in out) == (n == 1)

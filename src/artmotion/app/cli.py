@@ -99,8 +99,9 @@ def run_cmd(
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model)
+    why = too_short(res.num_tracks, res.frames)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
-               f" in {res.seconds:.1f} s{too_short(res.num_tracks, res.frames)}")
+               f" in {res.seconds:.1f} s{': ' + why if why else ''}")
     for s in res.sentences[:10]:
         typer.echo(f"  {s['sentence']}")
     if len(res.sentences) > 10:

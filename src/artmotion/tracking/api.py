@@ -45,13 +45,14 @@ class TrackResult:
         return len(set(self.tracks[:, 1].tolist()))
 
 
-def too_short(num_tracks: int, frames: int, config: TrackerConfig | None = None) -> str:
+def too_short(num_tracks: int, frames: int, confirm: int | None = None, what: str = "a track") -> str:
     """Why there is no track when the input is shorter than the detections that confirm one (``""``
-    otherwise): a summary's "0 tracks" then says so instead of nothing."""
-    confirm = (config or TrackerConfig()).confirm_hits
+    otherwise): a summary's "0 tracks" then says so instead of nothing. ``confirm``: the frames of
+    detections that confirm ``what`` (the people tracker's ``confirm_hits`` unless given)."""
+    confirm = TrackerConfig().confirm_hits if confirm is None else confirm
     if num_tracks or frames >= confirm:
         return ""
-    return f": a track is confirmed by detections on {confirm} frames, and the input has {frames}"
+    return f"{what} is confirmed by detections on {confirm} frames, and the input has {frames}"
 
 
 def _work_reduce(width: int, height: int) -> int:

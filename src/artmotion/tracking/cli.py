@@ -96,8 +96,9 @@ def track_command(
     typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height}{stored} @ {seq.fps:g} fps{assumed}, "
                f"detections: {res.detector}, experts: {','.join(res.experts)}"
                f"{' (online)' if online else ''}")
+    why = too_short(res.num_tracks, res.frames)
     typer.echo(f"{res.num_tracks} tracks, {len(res.tracks)} boxes, {len(res.events)} events"
-               f"{' (' + kinds + ')' if kinds else ''}{too_short(res.num_tracks, res.frames)}")
+               f"{' (' + kinds + ')' if kinds else ''}{': ' + why if why else ''}")
     typer.echo(f"{res.fps:.1f} frames/s ({res.seconds:.2f} s)")
     for what, path in (("tracks", out), ("events", events), ("video", video)):
         if path:

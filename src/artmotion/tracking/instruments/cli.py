@@ -116,8 +116,9 @@ def track(
     if threshold is not None:
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     seq, numbers = _numbered_frames(source)
+    from artmotion.tracking.api import too_short
     from artmotion.tracking.instruments.detector import ToolDetector, scale_to
-    from artmotion.tracking.instruments.track import ToolTracker, track_sequence
+    from artmotion.tracking.instruments.track import CONFIRM_HITS, ToolTracker, track_sequence
 
     det = ToolDetector.load(model)
     if threshold is not None:
@@ -135,8 +136,8 @@ def track(
                    "frames that show as many instruments")
     heads = sum(len(r) for r in pred.values())
     ids = len({int(t) for r in pred.values() for t in r[:, 0]})
-    why = (f" (a head is confirmed by detections on 2 frames, and the input has {len(pred)})"
-           if not heads and len(pred) < 2 else "")
+    why = too_short(heads, len(pred), CONFIRM_HITS, "a head")
+    why = f" ({why})" if why else ""
     f = scale_to(det.frame_shape_, (seq.height, seq.width))
     (h, w), scaled = det.frame_shape_, ""
     if f != 1.0:

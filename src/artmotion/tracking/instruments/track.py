@@ -44,6 +44,8 @@ from artmotion.tracking.pote import fuse
 
 __all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]
 
+#: detections on this many frames confirm a head (a tentative head's rows wait for it)
+CONFIRM_HITS = 2
 _LK = {"winSize": (15, 15), "maxLevel": 3, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
 
 
@@ -85,7 +87,7 @@ def _check_detections(detections, what: str) -> np.ndarray:
 
 class ToolTracker:
     """Frame-by-frame tracker of instrument heads; :meth:`update` returns the reported rows
-    ``(k, 6)``: track, x, y, size, angle, score, of confirmed heads (a detection on 2 frames).
+    ``(k, 6)``: track, x, y, size, angle, score, of confirmed heads (detections on ``CONFIRM_HITS`` frames).
     A head confirmed by this frame's detection adds the rows of its earlier, tentative frames to
     ``late`` (``(frame index, row)``, frames counted from 0 in ``frame``); ``settled``: the frames
     before it get no more late rows. ``capped``: frames on which the detector's cap of heads a
@@ -267,7 +269,7 @@ class ToolTracker:
         rows = []
         for h in sorted(self.heads, key=lambda h: h.id):
             row = [h.id, h.x[0], h.x[1], h.size, h.angle, h.score]
-            if h.hits < 2:  # tentative: its row waits for its confirmation
+            if h.hits < CONFIRM_HITS:  # tentative: its row waits for its confirmation
                 if h.miss <= self.coast:
                     h.early.append((self.frame, row))
                 continue

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from artmotion.errors import InputError
+
 
 def xywh_to_xyxy(b) -> np.ndarray:
     b = np.asarray(b, dtype=float)
@@ -51,10 +53,22 @@ def iou(a, b) -> np.ndarray:
     return np.divide(inter, union, out=np.zeros_like(inter, dtype=float), where=union > 0)
 
 
+def _stack(boxes, name: str) -> np.ndarray:
+    """``boxes`` (one box ``(4,)`` or a stack ``(..., 4)``; nothing at all is no box) as an
+    ``(N, 4)`` float array; else an :class:`~artmotion.errors.InputError` giving the shape (a
+    ``(N, 5)`` or ``(N, 10)`` array of rows must not be read as other boxes)."""
+    b = np.asarray(boxes, dtype=float)
+    if b.shape[-1:] != (4,):
+        if b.size:
+            raise InputError(f"{name} must be boxes x, y, w, h (shape (4,) or (N, 4)), got shape {b.shape}")
+        return b.reshape(0, 4)
+    return b.reshape(-1, 4)
+
+
 def iou_matrix(a, b) -> np.ndarray:
     """``(len(a), len(b))`` IoU matrix of two box stacks."""
-    a = np.asarray(a, dtype=float).reshape(-1, 4)
-    b = np.asarray(b, dtype=float).reshape(-1, 4)
+    a = _stack(a, "iou_matrix: a")
+    b = _stack(b, "iou_matrix: b")
     return iou(a[:, None, :], b[None, :, :])
 
 
@@ -81,10 +95,13 @@ def max_iou(box, boxes) -> float:
     """Largest IoU of one ``box`` with any of ``boxes`` (``(N, 4)``; 0 when there are none):
     ``iou_matrix(box, boxes).max()``, on Python floats for the few boxes of one frame (the same
     arithmetic, so the same numbers) and with NumPy for many."""
-    boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    boxes = _stack(boxes, "max_iou: boxes")
+    one = np.asarray(box, dtype=float)
+    if one.shape[-1:] != (4,) or one.size != 4:
+        raise InputError(f"max_iou: box must be one box x, y, w, h, got shape {one.shape}")
     if len(boxes) > 16:
-        return float(iou(np.asarray(box, dtype=float).reshape(4), boxes).max())
-    a = np.asarray(box, dtype=float).reshape(4).tolist()
+        return float(iou(one.reshape(4), boxes).max())
+    a = one.reshape(4).tolist()
     best = 0.0
     for b in boxes.tolist():
         inter, area_a, area_b = _overlap_terms(a, b)
@@ -102,7 +119,10 @@ def box_overlap(a, b) -> float:
 
 def union_box(boxes) -> np.ndarray:
     """Smallest box spanning all ``boxes`` (a group node's extent, Eq. 2.12-2.13)."""
-    xyxy = xywh_to_xyxy(np.asarray(boxes, dtype=float).reshape(-1, 4))
+    b = _stack(boxes, "union_box: boxes")
+    if not len(b):
+        raise InputError("union_box needs at least one box, got none")
+    xyxy = xywh_to_xyxy(b)
     return xyxy_to_xywh(np.concatenate([xyxy[:, :2].min(0), xyxy[:, 2:].max(0)]))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,8 +14,9 @@ from artmotion.errors import InputError, check_range
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
-from artmotion.tracking.experts import EXPERTS
+from artmotion.tracking.experts import check_experts
 from artmotion.tracking.mot import MultiObjectTracker
+from artmotion.tracking.online import OnlineTracker
 
 __all__ = ["DEFAULT_EXPERTS", "Sequence", "TrackResult", "open_sequence", "run_tracker", "track"]
 
@@ -65,19 +67,8 @@ def _work_reduce(width: int, height: int) -> int:
 
 
 def _check_experts(experts) -> tuple:
-    if isinstance(experts, str):
-        experts = [e.strip() for e in experts.split(",") if e.strip()]
-    experts = tuple(experts)
-    if not experts:
-        raise InputError("no experts given")
-    for e in experts:
-        if e not in EXPERTS:
-            raise InputError(f"unknown expert {e!r} (choose from {', '.join(sorted(EXPERTS))})")
-    if len(set(experts)) != len(experts):
-        raise InputError("an expert is listed twice")
-    if "det" not in experts:
-        raise InputError("the 'det' expert is needed: tracks start from detections (thesis Sec. 2.5.1)")
-    return experts
+    """The tracker's experts (:func:`~artmotion.tracking.experts.check_experts`, ``det`` among them)."""
+    return check_experts(experts, need_det=True)
 
 
 def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: int = 1, decode: int = 1,
@@ -88,13 +79,28 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
     given, from running it on every ``detect_every``-th frame (the experts and the motion model
     carry the tracks in between), one frame ahead on a worker thread (OpenCV releases Python's
     lock while it detects, so detection overlaps decoding and tracking). Returns the number of
-    the last frame."""
+    the last frame.
+
+    Frame numbers must be whole numbers >= 1 that increase, images ``(height, width, 3)`` BGR
+    uint8 of the tracker's size (``decode`` times smaller), detections finite boxes of positive
+    size: else an :class:`~artmotion.errors.InputError` naming the frame."""
     from artmotion.tracking.experts import Frame
 
+    if not isinstance(tracker, OnlineTracker):
+        raise InputError(f"run_tracker needs a MultiObjectTracker, got {type(tracker).__name__}")
+    reduce = check_range("reduce", reduce, 1, 100, integer=True)
+    decode = check_range("decode", decode, 1, 100, integer=True)
+    detect_every = check_range("detect_every", detect_every, 1, 100, integer=True)
+    if detector is None and not isinstance(detections, Mapping):
+        raise InputError("detections must be a mapping of frame numbers to (N, 5) arrays x, y, w, h, score "
+                         f"(a dict), got {type(detections).__name__}")
+    if detector is not None and not callable(detector):
+        raise InputError(f"detector must be callable (image -> (N, 5) detections), got {type(detector).__name__}")
     shared: dict = {}
     n = 0
     for n, img, d in _with_detections(frames, detections, detector, detect_every):
         tracker.step(Frame(n, img, d, scale=1.0 / reduce, shared=shared, image_scale=1.0 / decode))
+        n = tracker.last_frame      # the frame number as the tracker took it (3.0 is frame 3)
         if on_frame is not None:
             on_frame(1)
     return n
@@ -105,20 +111,34 @@ def _with_detections(frames, detections: dict, detector, every: int = 1):
     than every ``every``-th (not detected): from ``detections`` (a frame it does not list has
     none), or from a ``detector`` run one frame ahead on a worker thread."""
     if detector is None:
-        for k, (n, img) in enumerate(frames):
+        for k, (n, img) in enumerate(_pairs(frames)):
             yield n, img, detections.get(n, _NONE) if k % every == 0 else None
         return
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1, thread_name_prefix="artmotion-detect") as pool:
         pending = None
-        for k, (n, img) in enumerate(frames):
+        for k, (n, img) in enumerate(_pairs(frames)):
             job = pool.submit(detector, img) if k % every == 0 else None
             if pending is not None:
                 yield _done(*pending)
             pending = (n, img, job)
         if pending is not None:
             yield _done(*pending)
+
+
+def _pairs(frames):
+    """``frames`` as ``(number, image)`` pairs; else an :class:`~artmotion.errors.InputError`."""
+    try:
+        it = iter(frames)
+    except TypeError:
+        raise InputError(f"frames must be an iterable of (number, image) pairs, got {type(frames).__name__}") from None
+    for item in it:
+        try:
+            n, img = item
+        except (TypeError, ValueError):
+            raise InputError(f"frames must be (number, image) pairs, got {type(item).__name__}") from None
+        yield n, img
 
 
 def _done(n: int, img: np.ndarray, job):

@@ -53,7 +53,7 @@ def track_command(
                                help="Write enter/exit/merge/split events (JSON lines)."),
     video: str = typer.Option(None, "--video", metavar="ANNOTATED.mp4", help="Write an annotated video."),
     experts: str = typer.Option(None, "--experts",
-                                help="Comma-separated tracking experts to fuse (default: det,klt,blob,motion)."),
+                                help="Comma-separated tracking experts to fuse (default: det,motion; also klt, blob, flow)."),
     online: bool = typer.Option(False, "--online", help="Causal results only (no second, offline pass)."),
     fps: float = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder of images)."),
     progress: bool = typer.Option(None, "--progress/--no-progress",

@@ -8,6 +8,7 @@ component that is off by default is off because the ablation showed it does not 
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -86,7 +87,7 @@ class TrackerConfig:
     def check(self) -> TrackerConfig:
         """This configuration, or an :class:`~artmotion.errors.InputError` naming the first setting
         out of its range (a NaN gate once gave no tracks without a word; an infinite time a
-        deep OverflowError)."""
+        deep OverflowError). Whole-number settings given as NumPy integers become ``int``."""
         for f in fields(self):
             v = getattr(self, f.name)
             if f.type in ("bool", bool):
@@ -96,13 +97,21 @@ class TrackerConfig:
                 if v not in EXPERTS_WHEN:
                     raise InputError(f"experts_when must be one of {', '.join(EXPERTS_WHEN)}, got {v!r}")
             elif f.type in ("int", int):
-                if isinstance(v, bool) or not isinstance(v, int):
+                # a NumPy integer is one (numbers.Integral); a bool is not, nor is 2.0
+                if isinstance(v, bool) or not isinstance(v, numbers.Integral):
                     raise InputError(f"{f.name} must be a whole number, got {v!r}")
-                check_range(f.name, v, _INT_LEAST.get(f.name, 0), 1000)
+                setattr(self, f.name, check_range(f.name, v, _INT_LEAST.get(f.name, 0), 1000, integer=True))
             elif f.name in _SHARES:
                 check_range(f.name, v, 0.0, 1.0, lo_open=f.name in _OPEN_SHARES)
             else:
                 check_range(f.name, v, 0.0, _MAX_VALUE)
+        if not self.adapt_noise:
+            # a detection known exactly and a motion without noise: the Kalman update would divide
+            # by zero (a singular innovation covariance)
+            for meas, accel in (("meas", "accel"), ("size_meas", "size_accel")):
+                if getattr(self, meas) == 0 and getattr(self, accel) == 0:
+                    raise InputError(f"{meas} and {accel} must not both be 0 when adapt_noise is False "
+                                     "(a detection known exactly and a motion without noise)")
         return self
 
     @classmethod

@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 import cv2
 import numpy as np
 
+from artmotion.errors import InputError, float_array
 from artmotion.filters import KalmanFilter, constant_velocity
 from artmotion.geometry import box_area, box_center, intersection, iou
 
@@ -36,7 +37,10 @@ __all__ = [
     "Gaussian",
     "KLTExpert",
     "MotionExpert",
+    "belief_problem",
     "box_gaussian",
+    "check_detections",
+    "check_experts",
     "make_experts",
     "register_expert",
 ]
@@ -57,12 +61,51 @@ class Gaussian:
 def box_gaussian(box, scale: float = 1.0) -> Gaussian:
     """Eq. 2.9: a box ``[x, y, w, h]`` as ``N(centre, diag(w, h) / 6)`` (times ``scale``)."""
     box = np.asarray(box, dtype=float)
+    if not (box[2] > 0 and box[3] > 0):      # (NaN too) a box of no size would be a certain belief
+        raise InputError(f"box_gaussian needs a box of positive width and height, got {box[2]:g}x{box[3]:g}")
     return Gaussian(box_center(box), np.diag([max(box[2], 1e-3), max(box[3], 1e-3)]) / 6.0 * scale)
+
+
+def belief_problem(g) -> str | None:
+    """What is wrong with ``g`` as an expert's belief (``None``: nothing): not a
+    :class:`Gaussian`, a mean that is not finite, a covariance that is not finite and positive
+    definite (a zero covariance would be a certain expert, a negative one nonsense)."""
+    if not isinstance(g, Gaussian):
+        return f"a {type(g).__name__}, not a Gaussian or None"
+    if not np.isfinite(g.mean).all():
+        return f"a mean that is not finite ({g.mean[0]:g}, {g.mean[1]:g})"
+    c = g.cov
+    det = c[0, 0] * c[1, 1] - c[0, 1] * c[1, 0]
+    if not (0.0 < det < np.inf and c[0, 0] > 0 and np.isfinite(c).all()):
+        return ("a covariance that is not finite and positive definite "
+                f"[[{c[0, 0]:g}, {c[0, 1]:g}], [{c[1, 0]:g}, {c[1, 1]:g}]]")
+    return None
 
 
 # --------------------------------------------------------------------------------------------
 # Shared per-frame data
 # --------------------------------------------------------------------------------------------
+
+def check_detections(detections, number=None) -> np.ndarray:
+    """A frame's detections as an ``(N, 5)`` float array ``x, y, w, h, score`` (an empty array:
+    none); else an :class:`~artmotion.errors.InputError` naming frame ``number``: another shape
+    (``(N, 6)`` or MOTChallenge rows ``(N, 10)`` would be read as other boxes), NaN or infinite
+    values, a box of no size."""
+    d = float_array(detections, f"frame {number}: detections")
+    if d.ndim != 2 or d.shape[1] != 5:
+        if d.size:
+            hint = " (MOTChallenge rows? take columns 2 to 6: x, y, w, h, score)" if d.shape[-1:] == (10,) else ""
+            raise InputError(f"frame {number}: detections must be an (N, 5) array x, y, w, h, score, got shape "
+                             f"{d.shape}{hint}")
+        return d.reshape(0, 5)
+    if len(d) and not (np.isfinite(d).all() and (d[:, 2:4] > 0).all()):
+        bad = int(np.flatnonzero(~(np.isfinite(d).all(axis=1) & (d[:, 2:4] > 0).all(axis=1)))[0])
+        x, y, w, h, s = d[bad].tolist()
+        why = ("a NaN or infinite value" if not np.isfinite(d[bad]).all()
+               else "a box of no size (width and height must be positive)")
+        raise InputError(f"frame {number}: detections row {bad} has {why}: x={x:g} y={y:g} w={w:g} h={h:g} "
+                         f"score={s:g}")
+    return d
 
 
 class Frame:
@@ -78,6 +121,14 @@ class Frame:
 
     def __init__(self, number: int, image: np.ndarray, detections=None, scale: float = 1.0,
                  shared: dict | None = None, image_scale: float = 1.0):
+        if (not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8
+                or not image.size):
+            what = (f"{image.dtype} array of shape {image.shape}" if isinstance(image, np.ndarray)
+                    else type(image).__name__)
+            raise InputError(f"frame {number}: the image must be a BGR uint8 array of shape (height, width, 3), "
+                             f"got {what}")
+        if not (0.0 < scale < np.inf and 0.0 < image_scale < np.inf):
+            raise InputError(f"frame {number}: scale and image_scale must be positive, got {scale!r} and {image_scale!r}")
         self.number = number
         self.image: np.ndarray | None = image
         self.image_scale = float(image_scale)
@@ -86,8 +137,7 @@ class Frame:
         #: whether the detector ran on this frame (``detections=None``: it did not, e.g. when it
         #: runs on every k-th frame only; the tracker then predicts and counts no misses)
         self.detected = detections is not None
-        self.detections = (np.zeros((0, 5)) if detections is None
-                           else np.asarray(detections, dtype=float).reshape(-1, 5))
+        self.detections = np.zeros((0, 5)) if detections is None else check_detections(detections, number)
         #: state shared across frames (background model, flow engine), owned by the tracker
         self.shared = {} if shared is None else shared
         self._cache: dict = {}
@@ -149,6 +199,34 @@ class Entity:
 EXPERTS: dict[str, type[Expert]] = {}
 
 
+class UnknownExpert(InputError, KeyError):
+    """A name no expert is registered under: bad input (and, as it always was, a ``KeyError``)."""
+
+    __str__ = BaseException.__str__     # KeyError's own would quote the message
+
+
+def check_experts(names, need_det: bool = False) -> tuple[str, ...]:
+    """Names of registered experts as a tuple: a string is split at its commas (``"det,klt"``);
+    an unknown name, a name listed twice or (``need_det``: for a tracker) no names or no ``det``
+    is an :class:`~artmotion.errors.InputError`."""
+    if isinstance(names, str):
+        names = [e.strip() for e in names.split(",") if e.strip()]
+    try:
+        names = tuple(names)
+    except TypeError:
+        raise InputError(f"experts must be names of experts (e.g. 'det,motion'), got {type(names).__name__}") from None
+    if need_det and not names:
+        raise InputError("no experts given")
+    for e in names:
+        if not isinstance(e, str) or e not in EXPERTS:
+            raise UnknownExpert(f"unknown expert {e!r} (choose from {', '.join(sorted(EXPERTS))})")
+    if len(set(names)) != len(names):
+        raise InputError("an expert is listed twice")
+    if need_det and "det" not in names:
+        raise InputError("the 'det' expert is needed: tracks start from detections (thesis Sec. 2.5.1)")
+    return names
+
+
 def register_expert(cls: type[Expert]) -> type[Expert]:
     """Class decorator: make an expert available by its ``name`` to :func:`make_experts`."""
     if not getattr(cls, "name", None):
@@ -158,13 +236,9 @@ def register_expert(cls: type[Expert]) -> type[Expert]:
 
 
 def make_experts(names, **options) -> list[Expert]:
-    """Instantiate experts by name; ``options`` maps a name to keyword arguments for it."""
-    out = []
-    for n in names:
-        if n not in EXPERTS:
-            raise KeyError(n)
-        out.append(EXPERTS[n](**options.get(n, {})))
-    return out
+    """Instantiate experts by name (:func:`check_experts`: a string is split at its commas);
+    ``options`` maps a name to keyword arguments for it."""
+    return [EXPERTS[n](**options.get(n, {})) for n in check_experts(names)]
 
 
 class Expert:
@@ -598,4 +672,4 @@ class FlowExpert(Expert):
 
 def detections_support(frame: Frame, dets: np.ndarray) -> np.ndarray:
     """Foreground fraction of each detection box (background-motion support)."""
-    return np.array([foreground_fraction(frame, d[:4]) for d in np.asarray(dets).reshape(-1, 5)])
+    return np.array([foreground_fraction(frame, d[:4]) for d in check_detections(dets, frame.number)])

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from artmotion.errors import InputError
 from artmotion.geometry import clip_box
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import side_of, track_events
@@ -47,8 +48,10 @@ class MultiObjectTracker(OnlineTracker):
 
     def __init__(self, fps: float, width: int, height: int, experts=("det", "motion"),
                  config: TrackerConfig | None = None, online: bool = False):
+        if not isinstance(online, (bool, np.bool_)):
+            raise InputError(f"online must be True or False, got {online!r}")
         super().__init__(fps, width, height, experts=experts, config=config)
-        self.online = online
+        self.online = bool(online)
         self.relabel: dict[int, int] = {}
         self.piece_span: dict[int, tuple[int, int]] = {}
         self.row_kinds = np.zeros(0, dtype=int)

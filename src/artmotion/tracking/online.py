@@ -28,14 +28,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.geometry import iou_matrix, max_iou
+from artmotion.io.media import MAX_FPS, MIN_FPS
+from artmotion.io.mot import MAX_FRAME
 from artmotion.tracking.appearance import kl_matrix, rgb_histogram
 from artmotion.tracking.association import INF, assign, iou_cost
 from artmotion.tracking.camera import CameraMotion, CameraPath
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import track_ends
-from artmotion.tracking.experts import Entity, Frame
+from artmotion.tracking.experts import Entity, Frame, check_experts
 from artmotion.tracking.groups import Group, resolve_split, update_groups
 from artmotion.tracking.pote import PoTE
 from artmotion.tracking.state import (
@@ -51,7 +53,10 @@ from artmotion.tracking.state import (
     z_to_boxes,
 )
 
-__all__ = ["KINDS", "OnlineTracker", "Track"]
+__all__ = ["KINDS", "MAX_SIDE", "OnlineTracker", "Track"]
+
+#: the largest width or height of a frame, in pixels (as for a sequence's seqinfo.ini)
+MAX_SIDE = 100_000
 
 
 def _clean_views(tracks: list, matched: dict[int, int], dets: np.ndarray, old: np.ndarray, pred: np.ndarray,
@@ -128,10 +133,11 @@ class OnlineTracker:
         if config is not None and not isinstance(config, TrackerConfig):
             raise InputError(f"config must be a TrackerConfig, got {type(config).__name__}")
         self.cfg = cfg = (config or TrackerConfig()).check()
-        self.fps = float(fps) if fps and fps > 0 else 25.0
+        self.fps = float(check_range("frame rate (frames/s)", fps, MIN_FPS, MAX_FPS))
         self.dt = 1.0 / self.fps
-        self.width, self.height = int(width), int(height)
-        self.experts = tuple(experts)
+        self.width = check_range("width (pixels)", width, 1, MAX_SIDE, integer=True)
+        self.height = check_range("height (pixels)", height, 1, MAX_SIDE, integer=True)
+        self.experts = check_experts(experts, need_det=True)
         self.use_motion = "motion" in self.experts
         image_experts = [e for e in self.experts if e not in ("det", "motion")]
         self.pote = PoTE(image_experts) if image_experts and cfg.experts_when != "none" else None
@@ -142,6 +148,10 @@ class OnlineTracker:
         self.camera_path = CameraPath()     #: every frame's camera motion, for the offline pass
         self.noise = (NoiseEstimator(self.bank.rel_sd, self.bank.rel_accel, self.dt, horizon=cfg.noise_horizon)
                       if cfg.adapt_noise and self.use_motion else None)
+        if self.noise is None and cfg.size_meas == 0 and cfg.size_accel == 0:
+            # (TrackerConfig.check refuses this without adapt_noise; the estimate needs the motion expert)
+            raise InputError("size_meas and size_accel must not both be 0 without the 'motion' expert: the noise "
+                             "is then not estimated, and a size known exactly that never changes cannot be filtered")
         self.tracks: list[Track] = []        #: live tracks
         self.all_tracks: list[Track] = []
         self.groups: list[Group] = []
@@ -223,7 +233,28 @@ class OnlineTracker:
         return c.app_weight > 0 or c.reacquire_kl > 0 or c.exit_test or c.split_app or c.stitch
 
     # ------------------------------------------------------------------ one frame
+    def _check_frame(self, frame: Frame) -> None:
+        """A frame entering the tracker: a :class:`Frame` numbered by a whole number >= 1 after the
+        previous frame's, of the tracker's size (an image decoded ``1 / frame.image_scale`` times
+        smaller: that size divided, rounded up or down)."""
+        if not isinstance(frame, Frame):
+            raise InputError(f"the tracker steps on a Frame, got {type(frame).__name__}")
+        n = frame.number
+        if type(n) is not int or not 1 <= n <= MAX_FRAME:   # the common case costs a comparison
+            n = frame.number = check_range("frame number", n, 1, MAX_FRAME, integer=True)
+        if n <= self.last_frame:
+            raise InputError(f"frame numbers must increase: frame {n} after frame {self.last_frame}")
+        image = frame.image
+        if image is None:
+            raise InputError(f"frame {n}: the frame has no image (it went through the tracker before)")
+        h, w = image.shape[:2]
+        k = frame.image_scale
+        if abs(h - self.height * k) >= 1 or abs(w - self.width * k) >= 1:
+            size = f"{w}x{h}" if k == 1 else f"{w}x{h} ({w / k:g}x{h / k:g} at full size)"
+            raise InputError(f"frame {n}: the image is {size}, the tracker's frames are {self.width}x{self.height}")
+
     def step(self, frame: Frame) -> None:
+        self._check_frame(frame)
         cfg = self.cfg
         n = frame.number
         self.last_frame = n

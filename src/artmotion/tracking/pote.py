@@ -10,15 +10,34 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from artmotion.tracking.experts import Entity, Expert, Frame, Gaussian, make_experts
+from artmotion.errors import InputError
+from artmotion.tracking.experts import (
+    EXPERTS,
+    BlobExpert,
+    DetectionExpert,
+    Entity,
+    Expert,
+    FlowExpert,
+    Frame,
+    Gaussian,
+    KLTExpert,
+    MotionExpert,
+    belief_problem,
+    check_experts,
+)
 
 __all__ = ["PoTE", "fuse"]
+
+_INF = float("inf")
 
 
 def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
     """Product of Gaussian experts (Eq. 2.3); ``None`` entries (no opinion) are left out.
 
-    Returns ``None`` when no expert has an opinion.
+    Returns ``None`` when no expert has an opinion. A belief whose covariance is not finite and
+    positive definite (a zero one would be a certain expert, which the product cannot hold; a
+    negative or NaN one is no belief) or whose mean is not finite is an
+    :class:`~artmotion.errors.InputError`.
     """
     info = np.zeros((2, 2))
     vec = np.zeros(2)
@@ -26,7 +45,7 @@ def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
     for g in gaussians:
         if g is None:
             continue
-        P = _inv2(g.cov)
+        P = _information(g.cov)
         info += P
         vec += P @ g.mean
         n += 1
@@ -34,7 +53,30 @@ def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
         return None
     cov = _inv2(info)
     cov = 0.5 * (cov + cov.T)
-    return Gaussian(cov @ vec, cov)
+    mean = cov @ vec
+    s = mean[0] + mean[1]
+    if not s - s == 0:          # NaN or infinite: some belief's mean was
+        raise InputError(_mean_problem(gaussians))
+    return Gaussian(mean, cov)
+
+
+def _information(a: np.ndarray) -> np.ndarray:
+    """Inverse of a belief's 2x2 covariance (closed form), which must be finite and positive
+    definite (checked on the way: a positive determinant and first entry, a finite determinant)."""
+    det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    if not (0.0 < det < _INF and a[0, 0] > 0):
+        raise InputError("a belief's covariance is not finite and positive definite: "
+                         f"[[{a[0, 0]:g}, {a[0, 1]:g}], [{a[1, 0]:g}, {a[1, 1]:g}]]")
+    return np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det
+
+
+def _mean_problem(gaussians) -> str:
+    """Why :func:`fuse` gave no finite mean (the beliefs are read again where they can be: a list
+    or a dict's values)."""
+    for i, g in enumerate(gaussians):
+        if g is not None and not np.isfinite(g.mean).all():
+            return f"belief {i} has a mean that is not finite ({g.mean[0]:g}, {g.mean[1]:g})"
+    return "a belief's mean is not finite (or the product of the beliefs overflows)"
 
 
 def _inv2(a: np.ndarray) -> np.ndarray:
@@ -55,9 +97,17 @@ class PoTE:
 
     def __init__(self, experts: Sequence[Expert | str], calibrate: bool = True, prior_std: float = 0.05,
                  prior_weight: float = 10.0):
-        self.experts: list[Expert] = [
-            e if isinstance(e, Expert) else make_experts([e])[0] for e in experts
-        ]
+        if isinstance(experts, str):
+            experts = check_experts(experts)
+        try:
+            experts = list(experts)
+        except TypeError:
+            raise InputError(f"experts must be a list of experts or their names, got {type(experts).__name__}") from None
+        check_experts([e for e in experts if not isinstance(e, Expert)])
+        self.experts: list[Expert] = [e if isinstance(e, Expert) else EXPERTS[e]() for e in experts]
+        #: experts not built in (registered by the user): their beliefs are checked (the built-in
+        #: ones give finite means and positive definite covariances by construction)
+        self._unchecked = frozenset(e.name for e in self.experts if type(e) not in _BUILT_IN)
         #: learn each image expert's error online (Sec. 2.7.1: an expert's variance should match
         #: its actual performance): squared error relative to the box size against the detector
         self.calibrate = calibrate
@@ -97,9 +147,24 @@ class PoTE:
     def opinions(self, frame: Frame, prev: Frame | None, entity: Entity,
                  skip: Iterable[str] = ()) -> dict[str, Gaussian | None]:
         skip = set(skip)
-        ops = {e.name: self._calibrated(e.name, e.propose(frame, prev, entity), entity.box)
-               for e in self.experts if e.name not in skip}
+        ops = {}
+        for e in self.experts:
+            if e.name not in skip:
+                g = e.propose(frame, prev, entity)
+                if e.name in self._unchecked:
+                    self._check(e.name, (g,), frame)
+                ops[e.name] = self._calibrated(e.name, g, entity.box)
         return self._temper(ops)
+
+    @staticmethod
+    def _check(name: str, beliefs, frame: Frame) -> None:
+        """The opinions of an expert of the user's must be ``None`` or a :class:`Gaussian` with a
+        finite mean and a finite positive definite covariance (calibration would hide a zero or
+        negative variance, and the product with a NaN belief is nothing)."""
+        for g in beliefs:
+            problem = None if g is None else belief_problem(g)
+            if problem is not None:
+                raise InputError(f"frame {frame.number}: expert {name!r} gave {problem}")
 
     def _temper(self, ops: dict) -> dict:
         # the product assumes independent experts; k experts of one family (same evidence)
@@ -122,7 +187,11 @@ class PoTE:
         for e in self.experts:
             if e.name in skip:
                 continue
-            for d, ent, g in zip(per, entities, e.propose_many(frame, prev, entities)):
+            beliefs = e.propose_many(frame, prev, entities)
+            if e.name in self._unchecked:
+                beliefs = list(beliefs)
+                self._check(e.name, beliefs, frame)
+            for d, ent, g in zip(per, entities, beliefs):
                 d[e.name] = self._calibrated(e.name, g, ent.box)
         out = []
         for d in per:
@@ -134,3 +203,7 @@ class PoTE:
                  skip: Iterable[str] = ()) -> tuple[Gaussian | None, dict[str, Gaussian | None]]:
         ops = self.opinions(frame, prev, entity, skip)
         return fuse(ops.values()), ops
+
+
+#: the experts of this package, whose beliefs need no check
+_BUILT_IN = frozenset({BlobExpert, DetectionExpert, FlowExpert, KLTExpert, MotionExpert})

@@ -27,24 +27,130 @@ def _matrix(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     return a
 
 
+#: a covariance may differ from its transpose by this much, relative to its largest entry
+SYMMETRY_TOL = 1e-8
+#: ... and have eigenvalues down to minus this much, relative to its largest entry (round-off)
+PSD_TOL = 1e-8
+
+
+def _check_covariance(name: str, a: np.ndarray) -> None:
+    """An :class:`InputError` unless the square float array ``a`` is a covariance: finite,
+    symmetric and positive semi-definite (to :data:`SYMMETRY_TOL` and :data:`PSD_TOL` of its
+    size). Filters call it per step: a sound matrix costs a few float operations (1 x 1, 2 x 2)
+    or one ``eigvalsh`` and one comparison with its transpose (its largest eigenvalue bounds
+    its entries; a NaN or infinity fails a test); :func:`_covariance_problem` finds what is
+    wrong only when a test fails."""
+    n = a.shape[0]
+    if n == 1:
+        if 0.0 <= float(a[0, 0]) < math.inf:
+            return
+    elif n == 2:                       # (the Taylor models' 2 x 2: no LAPACK call)
+        (p, q), (r, t) = a.tolist()
+        scale = max(p, t)              # (for a covariance, |q| <= sqrt(p t) <= scale)
+        if (0.0 <= p < math.inf and 0.0 <= t < math.inf and abs(q - r) <= SYMMETRY_TOL * scale
+                and p * t - q * r >= -PSD_TOL * scale * scale):
+            return
+    else:
+        try:
+            w = np.linalg.eigvalsh(a)  # (reads the lower triangle)
+        except np.linalg.LinAlgError:
+            w = None                   # NaN or infinity
+        if w is not None:
+            hi = float(w[-1])
+            if math.isfinite(hi) and w[0] >= -PSD_TOL * hi and (a - a.T).max() <= SYMMETRY_TOL * hi:
+                return                 # (``a - a.T`` is antisymmetric: its max is its largest |entry|)
+    _covariance_problem(name, a)
+
+
+def _covariance_problem(name: str, a: np.ndarray) -> None:
+    """Raise the :class:`InputError` that says why ``a`` is not a covariance, if it is not."""
+    if not np.isfinite(a).all():
+        raise InputError(f"Kalman filter: {name} contains NaN or infinite values")
+    diag = np.diagonal(a)
+    if np.any(diag < 0.0):
+        raise InputError(f"Kalman filter: {name} has a negative variance on its diagonal ({float(diag.min()):g})")
+    scale = float(np.abs(a).max())
+    asym = float(np.abs(a - a.T).max())
+    if asym > SYMMETRY_TOL * scale:
+        raise InputError(f"Kalman filter: {name} must be symmetric (a covariance), but it differs from its "
+                         f"transpose by up to {asym:.3g}")
+    low = float(np.linalg.eigvalsh(a)[0])
+    if low < -PSD_TOL * scale:
+        raise InputError(f"Kalman filter: {name} must be positive semi-definite (a covariance), "
+                         f"but its smallest eigenvalue is {low:.3g}")
+
+
 def _covariance(name: str, value, n: int) -> np.ndarray:
-    """An ``n x n`` covariance: finite, with a non-negative diagonal (variances)."""
+    """An ``n x n`` covariance: finite, symmetric, positive semi-definite (:func:`_check_covariance`)."""
     a = _matrix(name, value, (n, n))
-    if np.any(np.diagonal(a) < 0.0):
-        raise InputError(f"Kalman filter: {name} has a negative variance on its diagonal")
+    _check_covariance(name, a)
+    return a
+
+
+def _override(name: str, value, shape: tuple[int, int], covariance: bool = False) -> np.ndarray:
+    """A matrix given to one :meth:`KalmanFilter.predict` or :meth:`~KalmanFilter.update`: a float
+    array of ``shape`` with finite entries (a covariance with ``covariance``: a number ``q`` stands
+    for ``q`` times the identity, as in filterpy), else an :class:`InputError`. Not copied."""
+    a = float_array(value, f"Kalman filter: {name}")
+    if covariance and a.ndim == 0:
+        q = float(a)
+        if not math.isfinite(q):
+            raise InputError(f"Kalman filter: {name} must be a finite variance, got {q:g}")
+        if q < 0.0:
+            raise InputError(f"Kalman filter: {name} must be a non-negative variance, got {q:g}")
+        return q * np.eye(shape[0])
+    if a.shape != shape:
+        raise InputError(f"Kalman filter: {name} must have shape {shape}, got {a.shape}")
+    if covariance:
+        _check_covariance(name, a)
+    elif not math.isfinite(a.sum()) and not np.isfinite(a).all():   # (one call when all is well)
+        raise InputError(f"Kalman filter: {name} contains NaN or infinite values")
     return a
 
 
 def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
-    """``log N(y; 0, S)`` for an innovation ``y`` with covariance ``S``."""
+    """``log N(y; 0, S)`` for an innovation ``y`` with covariance ``S``.
+
+    Raises :class:`InputError` unless ``S`` is a finite positive variance (or a positive definite
+    ``m x m`` matrix) and ``y`` holds ``m`` finite values.
+    """
     y = np.atleast_1d(y)
     S = np.atleast_2d(S)
     if S.shape == (1, 1):
         s = float(S[0, 0])
+        if y.shape != (1,) or not (0.0 < s < math.inf) or not math.isfinite(y[0]):
+            _loglik_problem(y, S)
         return -0.5 * (_LOG2PI + math.log(s) + float(y[0]) ** 2 / s)
-    L = np.linalg.cholesky(S)
-    z = np.linalg.solve(L, y)
-    return float(-0.5 * (len(y) * _LOG2PI + 2.0 * np.log(np.diag(L)).sum() + z @ z))
+    try:
+        L = np.linalg.cholesky(S)
+        z = np.linalg.solve(L, y)
+    except (ValueError, np.linalg.LinAlgError):
+        _loglik_problem(y, S)
+        raise InputError("gaussian_loglik: S must be positive definite (Cholesky failed: singular "
+                         "to working precision)") from None
+    zz = z @ z
+    if math.isnan(zz):                     # NaN in y (S's would have stopped the Cholesky)
+        _loglik_problem(y, S)
+    return float(-0.5 * (len(y) * _LOG2PI + 2.0 * np.log(np.diag(L)).sum() + zz))
+
+
+def _loglik_problem(y: np.ndarray, S: np.ndarray) -> None:
+    """Raise the :class:`InputError` that says what is wrong with :func:`gaussian_loglik`'s ``y``
+    and ``S``, if something is (a shape, a NaN, a variance that is not positive)."""
+    if S.ndim != 2 or S.shape[0] != S.shape[1] or S.shape[0] == 0:
+        raise InputError(f"gaussian_loglik: S must be a variance or a square covariance matrix, got shape {S.shape}")
+    m = S.shape[0]
+    if y.shape != (m,):
+        raise InputError(f"gaussian_loglik: y must hold {m} value{'s' if m != 1 else ''} (the size of S), "
+                         f"got shape {y.shape}")
+    if not (np.isfinite(y).all() and np.isfinite(S).all()):
+        raise InputError("gaussian_loglik: y and S must be finite, got NaN or infinite values")
+    if m == 1:
+        raise InputError(f"gaussian_loglik: the variance S must be positive, got {float(S[0, 0]):g}")
+    low = float(np.linalg.eigvalsh(S)[0])
+    if low <= 0.0 or np.abs(S - S.T).max() > SYMMETRY_TOL * np.abs(S).max():
+        raise InputError(f"gaussian_loglik: S must be a symmetric positive definite covariance, "
+                         f"but its smallest eigenvalue is {low:.3g}")
 
 
 class KalmanFilter:
@@ -62,11 +168,11 @@ class KalmanFilter:
         self.P = _covariance("P", P, n)
         self.F = _matrix("F", F, (n, n))
         self.Q = _covariance("Q", Q, n)
-        H = np.atleast_2d(np.asarray(H, dtype=float))
+        H = np.atleast_2d(float_array(H, "Kalman filter: H"))
         if H.ndim != 2 or H.shape[1] != n or H.shape[0] == 0:
             raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {H.shape}")
         self.H = _matrix("H", H, H.shape)
-        self.R = _covariance("R", np.atleast_2d(np.asarray(R, dtype=float)), H.shape[0])
+        self.R = _covariance("R", np.atleast_2d(float_array(R, "Kalman filter: R")), H.shape[0])
         self.y = np.zeros(self.H.shape[0])
         self.S = np.eye(self.H.shape[0])
         self.log_likelihood = 0.0
@@ -76,8 +182,12 @@ class KalmanFilter:
         return self.x.shape[0]
 
     def predict(self, F=None, Q=None) -> np.ndarray:
-        F = self.F if F is None else F
-        Q = self.Q if Q is None else Q
+        """``x = F x``, ``P = F P F^T + Q`` with the filter's ``F`` and ``Q`` or, for this step,
+        the ones given (checked: ``F`` an ``n x n`` finite matrix, ``Q`` a covariance or a number
+        ``q`` for ``q`` times the identity, as in filterpy)."""
+        n = self.dim_x
+        F = self.F if F is None else _override("F", F, (n, n))
+        Q = self.Q if Q is None else _override("Q", Q, (n, n), covariance=True)
         try:
             x = F @ self.x
             P = F @ self.P @ F.T + Q
@@ -105,7 +215,8 @@ class KalmanFilter:
             ll = gaussian_loglik(y, S)
         except (ValueError, np.linalg.LinAlgError) as e:
             self._check_state()
-            raise InputError(f"Kalman filter: the innovation covariance is not positive definite ({e})") from None
+            raise InputError("Kalman filter: the innovation covariance is not positive definite "
+                             f"({getattr(e, 'reason', e)})") from None
         self.y, self.S = y, S
         self.x = self.x + K @ self.y
         I_KH = np.eye(self.dim_x) - K @ H
@@ -115,27 +226,25 @@ class KalmanFilter:
 
     def _measurement(self, z, R, H) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``H``, ``R`` and ``z`` of an update, checked against each other: ``z`` has one finite
-        value per row of ``H``, ``R`` is that square with non-negative variances."""
+        value per row of ``H``, ``R`` that square and a covariance (a number ``r``: ``r`` times
+        the identity, as in filterpy), ``H`` finite."""
         if H is None:
             H = self.H
         else:
-            H = np.atleast_2d(np.asarray(H, dtype=float))
-            if H.ndim != 2 or H.shape[1] != self.dim_x:
+            H = np.atleast_2d(float_array(H, "Kalman filter: H"))
+            if H.ndim != 2 or H.shape[1] != self.dim_x or H.shape[0] == 0:
                 raise InputError(f"Kalman filter: H must have shape (m, {self.dim_x}) for a state of "
                                  f"{self.dim_x}, got {H.shape}")
+            H = _override("H", H, H.shape)
         m = H.shape[0]
         if R is None:
             R = self.R
         else:
-            R = np.atleast_2d(np.asarray(R, dtype=float))
-            if R.shape != (m, m):
-                raise InputError(f"Kalman filter: R must have shape {(m, m)} for {m} measured value(s), got {R.shape}")
-            if m == 1:
-                if not R[0, 0] >= 0.0:
-                    raise InputError(f"Kalman filter: R must be a non-negative variance, got {R[0, 0]:g}")
-            elif not np.all(np.diagonal(R) >= 0.0):
-                raise InputError("Kalman filter: R has a negative or NaN variance on its diagonal")
-        z = np.atleast_1d(np.asarray(z, dtype=float))
+            R = float_array(R, "Kalman filter: R")
+            if R.ndim == 1:
+                R = R[None, :]       # [r] for one measured value
+            R = _override("R", R, (m, m), covariance=True)
+        z = np.atleast_1d(float_array(z, "Kalman filter: z"))
         if z.shape != (m,):
             raise InputError(f"Kalman filter: z must hold {m} value{'s' if m != 1 else ''} (the rows of H), "
                              f"got shape {z.shape}")

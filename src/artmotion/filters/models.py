@@ -13,13 +13,22 @@ import math
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, float_array
+
+
+def _check_order_dt(order, dt) -> int:
+    """``order`` as an int (a whole number >= 1) after checking ``dt`` (a finite step >= 0),
+    else an :class:`InputError`. ``dt`` itself is used as given (its type keeps the results
+    bit for bit)."""
+    order = check_range("order (of the Taylor model)", order, 1, math.inf, hi_open=True, integer=True)
+    check_range("dt (the time step)", dt.item() if isinstance(dt, np.ndarray) and dt.ndim == 0 else dt,
+                0.0, math.inf, hi_open=True)
+    return order
 
 
 def taylor_transition(order: int, dt: float) -> np.ndarray:
-    """``A`` of Eq. 4.14 for a state of ``order`` entries (``order >= 1``)."""
-    if order < 1:
-        raise ValueError("order must be >= 1")
+    """``A`` of Eq. 4.14 for a state of ``order`` entries (``order >= 1``, ``dt >= 0``)."""
+    order = _check_order_dt(order, dt)
     A = np.zeros((order, order))
     for k in range(order):
         A += np.eye(order, k=k) * (dt**k / math.factorial(k))
@@ -28,8 +37,7 @@ def taylor_transition(order: int, dt: float) -> np.ndarray:
 
 def white_noise_input(order: int, dt: float) -> np.ndarray:
     """``B`` of Eq. 4.14 (column of length ``order``): how the n-th derivative enters."""
-    if order < 1:
-        raise ValueError("order must be >= 1")
+    order = _check_order_dt(order, dt)
     return np.array([[dt ** (order - i) / math.factorial(order - i)] for i in range(order)])
 
 
@@ -37,13 +45,18 @@ def taylor_model(order: int, dt: float, noise_var: float = 1.0, dims: int = 1) -
     """``(F, Q)`` for ``dims`` independent axes each following an order-``order`` Taylor model.
 
     ``Q = B noise_var B^T`` per axis (the discrete white-noise model of Eq. 4.13); the state is
-    ordered axis by axis: ``[q_1, q_1', ..., q_2, q_2', ...]`` (as Eq. 2.10).
+    ordered axis by axis: ``[q_1, q_1', ..., q_2, q_2', ...]`` (as Eq. 2.10). ``order`` is a whole
+    number >= 1, ``dt`` a finite step >= 0, the variances finite and >= 0 (else :class:`InputError`).
     """
     if isinstance(dims, bool) or not isinstance(dims, (int, np.integer)) or dims < 1:
         raise InputError(f"dims must be a whole number of axes >= 1, got {dims!r}")
-    q = np.atleast_1d(np.asarray(noise_var, dtype=float))
+    order = _check_order_dt(order, dt)
+    q = np.atleast_1d(float_array(noise_var, "noise variances"))
     if q.ndim != 1 or q.size not in (1, dims):
         raise InputError(f"noise variances must be one number or one per axis ({dims}), got {q.size}")
+    if not (np.isfinite(q).all() and (q >= 0.0).all()):
+        bad = q[~(np.isfinite(q) & (q >= 0.0))][0]
+        raise InputError(f"noise variances must be finite and >= 0, got {bad:g}")
     A = taylor_transition(order, dt)
     B = white_noise_input(order, dt)
     if q.size == 1:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 
 
 def _rotation():
@@ -27,37 +27,108 @@ def quat_to_matrix(q, *, tol: float = 1e-3) -> np.ndarray:
     return _rotation().from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
 
 
-def matrix_to_quat(R) -> np.ndarray:
-    R = np.asarray(R, dtype=float)
+def _rotations(R, name: str, tol: float, stack: bool = True) -> np.ndarray:
+    """``R`` as a float array of rotation matrices, shape ``(3, 3)`` (or ``(..., 3, 3)`` with
+    ``stack``), else an :class:`InputError`: another shape, NaN or infinite entries, a matrix that
+    is not orthonormal (``R Rᵀ`` differs from the identity by more than ``tol`` in an entry, the
+    style of :func:`quat_to_matrix`'s ``tol``) or is a reflection (determinant -1)."""
+    R = float_array(R, name)
+    if R.ndim < 2 or R.shape[-2:] != (3, 3) or (not stack and R.ndim != 2):
+        raise InputError(f"{name} must be a 3x3 rotation matrix{' or a stack of them (..., 3, 3)' if stack else ''}, "
+                         f"got shape {R.shape}")
+    if not np.isfinite(R).all():
+        raise InputError(f"{name} contains NaN or infinite values")
+    err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1))
+    det = np.linalg.det(R)
+    bad = (err > tol) | (det <= 0.0)
+    if np.any(bad):
+        k = int(np.argmax(np.ravel(bad)))
+        where = f" (matrix {k + 1})" if R.ndim > 2 else ""
+        e, d = float(np.ravel(err)[k]), float(np.ravel(det)[k])
+        why = (f"R Rᵀ differs from the identity by {e:.4g} (tolerance {tol:g})" if e > tol
+               else f"its determinant is {d:.4g} (a reflection)")
+        raise InputError(f"{name} is not a rotation matrix{where}: {why}")
+    return R
+
+
+def matrix_to_quat(R, *, tol: float = 1e-3) -> np.ndarray:
+    """Unit quaternions ``(..., 4)`` (``x, y, z, w``) of rotation matrices ``(..., 3, 3)``.
+
+    Raises :class:`InputError` for another shape, NaN, or a matrix that is not a rotation
+    (orthonormal to ``tol``, determinant +1).
+    """
+    R = _rotations(R, "R", tol)
     return _rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
 
 
+def _unit_axis(axis) -> np.ndarray:
+    """``axis`` (a finite, non-zero 3-vector) divided by its length, else an :class:`InputError`."""
+    axis = float_array(axis, "axis")
+    if axis.shape != (3,):
+        raise InputError(f"axis must be a 3-vector, got shape {axis.shape}")
+    if not np.isfinite(axis).all():
+        raise InputError(f"axis contains NaN or infinite values, got {axis.tolist()}")
+    norm = np.linalg.norm(axis)
+    if not 0.0 < norm < np.inf:
+        raise InputError(f"axis must be a non-zero vector (it has no direction), got {axis.tolist()}" if not np.any(axis)
+                         else f"axis is too {'short' if norm == 0.0 else 'long'} to normalise, got {axis.tolist()}")
+    return axis / norm
+
+
 def axis_angle_to_matrix(axis, angle) -> np.ndarray:
-    """Rodrigues' formula: rotation by ``angle`` (radians) about ``axis`` (any non-zero length)."""
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis)
-    angle = np.asarray(angle, dtype=float)
+    """Rodrigues' formula: rotation by ``angle`` (radians) about ``axis`` (a 3-vector of any
+    non-zero length). ``angle`` may be an array: one matrix per angle, shape ``angle.shape + (3, 3)``.
+    Raises :class:`InputError` for a zero or non-finite axis or a non-finite angle."""
+    axis = _unit_axis(axis)
+    angle = float_array(angle, "angle")
+    if not np.isfinite(angle).all():
+        raise InputError("angle contains NaN or infinite values")
     return _rotation().from_rotvec(axis * angle[..., None]).as_matrix()
 
 
-def matrix_to_axis_angle(R) -> tuple[np.ndarray, float]:
-    """Unit axis and angle in ``[0, pi]`` of a rotation matrix (axis ``[0, 0, 1]`` for identity)."""
-    rv = _rotation().from_matrix(np.asarray(R, dtype=float)).as_rotvec()
+def matrix_to_axis_angle(R, *, tol: float = 1e-3) -> tuple[np.ndarray, float]:
+    """Unit axis and angle in ``[0, pi]`` of one rotation matrix ``(3, 3)`` (axis ``[0, 0, 1]`` for
+    identity). Raises :class:`InputError` for another shape (a stack too: use :func:`matrix_to_quat`
+    or :func:`rotation_angle` for those), NaN, or a matrix that is not a rotation (to ``tol``)."""
+    R = float_array(R, "R")
+    if R.ndim > 2:
+        raise InputError(f"matrix_to_axis_angle takes one 3x3 matrix, got a stack of shape {R.shape} "
+                         "(matrix_to_quat and rotation_angle take stacks)")
+    R = _rotations(R, "R", tol, stack=False)
+    rv = _rotation().from_matrix(R).as_rotvec()
     angle = float(np.linalg.norm(rv))
     axis = rv / angle if angle > 1e-12 else np.array([0.0, 0.0, 1.0])
     return axis, angle
 
 
-def rotation_angle(R) -> np.ndarray:
-    """Angle of rotation(s) in radians, from the trace (robust to round-off)."""
-    R = np.asarray(R, dtype=float)
+def rotation_angle(R, *, tol: float = 1e-3) -> np.ndarray:
+    """Angle of rotation(s) ``(..., 3, 3)`` in radians, from the trace (robust to round-off).
+    Raises :class:`InputError` for another shape, NaN, or a matrix that is not a rotation (to ``tol``)."""
+    R = _rotations(R, "R", tol)
     c = (np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
 def angle_between(u, v) -> np.ndarray:
-    """Angle in radians between vectors ``u`` and ``v`` (broadcasting over leading axes)."""
-    u = np.asarray(u, dtype=float)
-    v = np.asarray(v, dtype=float)
-    cos = np.sum(u * v, axis=-1) / (np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1))
+    """Angle in radians between vectors ``u`` and ``v`` (broadcasting over leading axes).
+    Raises :class:`InputError` for vectors of different lengths, NaN, or a zero vector (it has
+    no direction)."""
+    u = float_array(u, "u")
+    v = float_array(v, "v")
+    if u.ndim == 0 or v.ndim == 0 or u.shape[-1] != v.shape[-1] or u.shape[-1] == 0:
+        raise InputError(f"u and v must be vectors of the same length, got shapes {u.shape} and {v.shape}")
+    nu = np.linalg.norm(u, axis=-1)
+    nv = np.linalg.norm(v, axis=-1)
+    for name, x, n in (("u", u, nu), ("v", v, nv)):
+        if not np.isfinite(x).all():
+            raise InputError(f"{name} contains NaN or infinite values")
+        bad = ~((n > 0.0) & (n < np.inf))          # zero, or too short or too long for its length
+        if np.any(bad):
+            k = int(np.argmax(np.ravel(bad)))
+            got = x.tolist() if x.ndim == 1 else f"row {k + 1}: {x.reshape(-1, x.shape[-1])[k].tolist()}"
+            nk = float(np.ravel(n)[k])
+            raise InputError(f"{name} must be a non-zero vector (a zero vector has no direction), got {got}"
+                             if not np.any(x.reshape(-1, x.shape[-1])[k]) else
+                             f"{name} is too {'short' if nk == 0.0 else 'long'} to normalise, got {got}")
+    cos = np.sum(u * v, axis=-1) / (nu * nv)
     return np.arccos(np.clip(cos, -1.0, 1.0))

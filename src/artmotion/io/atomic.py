@@ -207,9 +207,25 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         os.replace(tmp_path, path)
 
 
+def _write_mode(mode) -> bool:
+    """``mode`` is one of :func:`open`'s modes that write a fresh file: one ``w``, at most one of
+    ``b``/``t`` and one ``+``, in any order."""
+    return (isinstance(mode, str) and mode.count("w") == 1 and set(mode) <= set("wbt+")
+            and len(set(mode)) == len(mode) and not {"b", "t"} <= set(mode))
+
+
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "w", encoding: str | None = "utf-8") -> Iterator[IO]:
-    """Open a temporary file for writing; it replaces ``path`` only when the block succeeds."""
+    """Open a temporary file for writing; it replaces ``path`` only when the block succeeds.
+
+    ``mode`` is a write mode (``"w"``, ``"wt"``, ``"wb"``, with ``+`` to read back what was
+    written): the file is always written anew, so ``"a"`` (which would lose the contents it means
+    to add to), ``"r"`` (which would empty the file) and ``"x"`` are refused with an
+    :class:`InputError` before anything is touched."""
+    if not _write_mode(mode):
+        raise InputError(f"atomic_write: mode must be a write mode ('w', 'wt' or 'wb', with '+' to read back), "
+                         f"got {mode!r}: the file is always written anew (an atomic write cannot append to it, "
+                         "read it or refuse an existing one)")
     if "b" in mode:
         encoding = None
     with atomic_path(path) as tmp:

@@ -12,9 +12,13 @@ skipped.
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 from collections.abc import Iterable
 from pathlib import Path
+
+import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
@@ -29,11 +33,73 @@ SIDES = ("left", "right", "top", "bottom", "inside")
 
 
 def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
+    """A whole number: an ``int`` or a NumPy integer, not a ``bool``."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
+
+
+def _coordinate(v) -> bool:
+    """A number (a NumPy one too, not a ``bool``) within +-:data:`MAX_COORD`, not NaN."""
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int):
+        return abs(v) <= MAX_COORD                        # (a whole number of any size)
+    return isinstance(v, (float, np.integer, np.floating)) and abs(float(v)) <= MAX_COORD
 
 
 def _not_json_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _infinite(value, where: str) -> str | None:
+    """Where in a parsed JSON ``value`` a number is infinite (``1e999`` reads as ``inf``), named
+    as ``'q'`` or ``'box'[2]``, or ``None``."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else where
+    items = (value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ())
+    for key, v in items:
+        found = _infinite(v, (f"{where}[{key!r}]" if where else repr(key)))
+        if found is not None:
+            return found
+    return None
+
+
+class _NotJSON(ValueError):
+    """A value :func:`write_events` cannot write as JSON (the message says which and why)."""
+
+
+def _json_value(value, where: str):
+    """``value`` in the types :mod:`json` writes, NumPy numbers as Python ones (the same digits),
+    else :class:`_NotJSON`: a NaN or infinity (JSON has none), an array or another object.
+    ``where`` names the value (``'x'``, ``'box'[2]``) for the message; ``""`` for an event."""
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, numbers.Integral):              # int, NumPy integers
+        return value if type(value) is int else int(value)
+    if isinstance(value, float) or (isinstance(value, numbers.Real) and not isinstance(value, numbers.Rational)):
+        f = float(value)                                  # (float, NumPy floats; not a Fraction)
+        if not math.isfinite(f):
+            raise _NotJSON(f"{where} is {f} (numbers must be finite: JSON has no NaN or infinity)")
+        return value if type(value) is float else f
+    if isinstance(value, (list, tuple)):
+        items = [_json_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
+        return items if isinstance(value, list) else tuple(items)
+    if isinstance(value, dict):
+        out = {}
+        for key, v in value.items():
+            if isinstance(key, numbers.Integral) and not isinstance(key, (int, bool)):
+                key = int(key)                            # a NumPy integer key, written as JSON writes an int's
+            elif not (key is None or isinstance(key, (str, int, bool))
+                      or isinstance(key, float) and math.isfinite(key)):
+                raise _NotJSON(f"{where or 'the event'} has a key {key!r} that JSON cannot hold (keys are strings)")
+            out[key] = _json_value(v, f"{where}[{key!r}]" if where else repr(key))
+        return out
+    if isinstance(value, np.ndarray):
+        raise _NotJSON(f"{where} is a NumPy array of shape {value.shape}, which JSON cannot hold: give a list "
+                       "(its .tolist())")
+    raise _NotJSON(f"{where} is a {type(value).__name__}, which JSON cannot hold (numbers, strings, booleans, "
+                   "lists and objects can)")
 
 
 def event_problem(ev) -> str | None:
@@ -59,7 +125,7 @@ def event_problem(ev) -> str | None:
         return f"'end_frame' must be an integer in [frame, {MAX_FRAME}]"
     for key in ("x", "y"):
         v = ev.get(key)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not abs(v) <= MAX_COORD):
+        if v is not None and not _coordinate(v):
             return f"{key!r} must be a number in [-{MAX_COORD:g}, {MAX_COORD:g}], got {v!r}"
     return None
 
@@ -78,6 +144,10 @@ def read_events(path: str | os.PathLike) -> list[dict]:
         except (ValueError, RecursionError) as exc:
             raise InputError(f"not JSON: {exc}", path=path, line=lineno) from None
         problem = event_problem(ev)
+        if problem is None:
+            where = _infinite(ev, "")
+            if where is not None:
+                problem = f"{where} is a number out of range: it overflows to infinity (numbers must be finite)"
         if problem is not None:
             raise InputError(problem, path=path, line=lineno)
         events.append(ev)
@@ -86,12 +156,22 @@ def read_events(path: str | os.PathLike) -> list[dict]:
 
 def write_events(path: str | os.PathLike, events: Iterable[dict]) -> None:
     """Write events as JSON lines, atomically, in the given order; each is checked as
-    :func:`read_events` checks it (never a file it would refuse)."""
+    :func:`read_events` checks it (never a file it would refuse). NumPy numbers are written as
+    Python's; a NaN or infinity, an array or another value JSON cannot hold is an
+    :class:`InputError` naming the event and the key."""
     events = list(events)
+    plain = []
     for k, ev in enumerate(events):
         problem = event_problem(ev)
+        if problem is None:
+            try:
+                plain.append(_json_value(ev, ""))
+            except _NotJSON as exc:
+                problem = str(exc)
+            except RecursionError:
+                problem = "a value is nested too deeply (or holds itself)"
         if problem is not None:
             raise InputError(f"event {k + 1} for {os.fspath(path)}: {problem}")
     with atomic_write(path) as fh:
-        for ev in events:
+        for ev in plain:
             fh.write(json.dumps(ev, sort_keys=False, allow_nan=False) + "\n")

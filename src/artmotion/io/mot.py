@@ -142,11 +142,33 @@ def check_mot_rows(rows, what: str = "tracks") -> np.ndarray:
     return arr
 
 
+def _check_written_sizes(rows: np.ndarray, what: str) -> None:
+    """An :class:`InputError` for a box whose width or height :func:`write_mot` would write as
+    ``0.00`` (under 0.005 pixels; :func:`read_mot` refuses a non-positive size) or whose score
+    its 4 significant digits would round to infinity (beyond 1.7976e308). Only the values near
+    those limits are formatted to tell, as the file is written (so the rounding is the same)."""
+    for k in np.flatnonzero((rows[:, 4:6] < 0.01).any(axis=1)):
+        w, h = float(rows[k, 4]), float(rows[k, 5])
+        if float(f"{w:.2f}") <= 0.0 or float(f"{h:.2f}") <= 0.0:
+            raise InputError(f"{what}: box size {w:g}x{h:g} (frame {int(rows[k, 0])}, id {int(rows[k, 1])}) would "
+                             "be written as 0 at the file's 2 decimals, which read_mot refuses: widths and heights "
+                             "must be at least 0.005 pixels")
+    if rows.shape[1] > 6:
+        for k in np.flatnonzero(np.abs(rows[:, 6]) > 1e308):
+            conf = float(rows[k, 6])
+            if not math.isfinite(float(f"{conf:.4g}")):
+                raise InputError(f"{what}: score {conf:g} (frame {int(rows[k, 0])}, id {int(rows[k, 1])}) would be "
+                                 "written as infinity at the file's 4 significant digits, which read_mot refuses")
+
+
 def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
     """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id
-    (:func:`check_mot_rows` first: never a file :func:`read_mot` would refuse)."""
-    rows = check_mot_rows(rows, f"rows for {os.fspath(path)}")
+    (:func:`check_mot_rows` first, and a box size that would be written as ``0.00``, the two
+    decimals of the file, is refused: never a file :func:`read_mot` would refuse)."""
+    what = f"rows for {os.fspath(path)}"
+    rows = check_mot_rows(rows, what)
     if rows.size:
+        _check_written_sizes(rows, what)
         rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
     with atomic_write(path) as fh:
         for r in rows:

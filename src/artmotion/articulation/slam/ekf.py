@@ -16,13 +16,15 @@ Jacobians (Eq. 4.27-4.28). Data association is known (landmark ids).
 
 from __future__ import annotations
 
+import inspect
 import math
 import reprlib
+import sys
 
 import numpy as np
 
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, float_array
 
 __all__ = ["motion_model", "control_noise", "observe", "inverse_observation", "gate_threshold", "EKFSlam"]
 
@@ -86,9 +88,8 @@ def inverse_observation(x: np.ndarray, z) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def gate_threshold(p: float) -> float:
     """The chi^2 (2 degrees of freedom) value that a consistent sighting exceeds with probability
-    ``p``: ``-2 ln p`` (13.8 for 0.1 %)."""
-    if not 0.0 < p < 1.0:
-        raise ValueError("the gate's probability must lie in (0, 1)")
+    ``p``: ``-2 ln p`` (13.8 for 0.1 %). An :class:`InputError` unless ``p`` lies in (0, 1)."""
+    p = check_range("p", p, 0.0, 1.0, lo_open=True, hi_open=True)
     return -2.0 * math.log(p)
 
 
@@ -100,9 +101,26 @@ def _numeric(a) -> bool:
         return False
 
 
+def _check_control(u) -> tuple[float, float]:
+    """``u`` as two finite floats ``(v, omega)``, else an :class:`InputError` (before the state is touched)."""
+    U = np.asarray(u, dtype=float) if _numeric(u) else None
+    if U is None or U.shape != (2,) or not np.isfinite(U).all():
+        raise InputError(f"a control must be two finite numbers (v, omega), got {reprlib.repr(u)}")
+    return float(U[0]), float(U[1])
+
+
+#: the ranges a sighting may have (m): a range of 0 (or so small that the landmark lands on the
+#: robot's estimate) has no bearing and divides by zero (Eq. 4.27-4.28); one beyond 1000 km
+#: overflows the covariances (``range^2 bearing_std^2``); either turned the whole state to NaN
+MIN_RANGE, MAX_RANGE = 1e-6, 1e6
+#: least and greatest (range, bearing): a finite bearing lies within the largest floats
+_Z_LOW, _Z_HIGH = np.array([MIN_RANGE, -sys.float_info.max]), np.array([MAX_RANGE, sys.float_info.max])
+
+
 def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
-    """``ids`` as whole numbers and ``zs`` as a ``(k, 2)`` array of finite (range, bearing) pairs, one
-    per id; else an :class:`InputError` (before the filter's state is touched)."""
+    """``ids`` as whole numbers and ``zs`` as a ``(k, 2)`` array of (range, bearing) pairs, one per
+    id, ranges in ``[MIN_RANGE, MAX_RANGE]`` and bearings finite; else an :class:`InputError`
+    (before the filter's state is touched)."""
     idx = np.asarray(ids) if _numeric(ids) else None
     if idx is None or idx.ndim != 1 or (idx.size and not (np.isfinite(idx).all() and (idx == np.round(idx)).all())):
         raise InputError(f"landmark ids must be a list of whole numbers, got {reprlib.repr(ids)}")
@@ -110,12 +128,51 @@ def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
     if Z is not None and Z.size == 0:
         Z = Z.reshape(0, 2)
     if Z is None or Z.ndim != 2 or Z.shape[1] != 2:
-        raise InputError(f"sightings must be (range, bearing) pairs, one row each, got {reprlib.repr(zs)}")
+        raise InputError(f"sightings zs must be (range, bearing) pairs, one row each, got {reprlib.repr(zs)}")
     if len(Z) != len(idx):
-        raise InputError(f"{len(idx)} landmark ids but {len(Z)} sightings")
-    if not np.isfinite(Z).all():
-        raise InputError("a sighting holds a NaN or infinite range or bearing")
+        raise InputError(f"{len(idx)} landmark ids but {len(Z)} sightings zs")
+    ok = (Z >= _Z_LOW) & (Z <= _Z_HIGH)  # (False for NaN)
+    if not ok.all():
+        j, c = np.argwhere(~ok)[0]
+        what = (f"has range {Z[j, 0]:g}: ranges must lie in [{MIN_RANGE:g}, {MAX_RANGE:g}] m" if c == 0
+                else f"has bearing {Z[j, 1]:g}: bearings must be finite")
+        raise InputError(f"sighting zs[{j}] of landmark {int(idx[j])} {what}")
     return idx.astype(int).tolist(), Z
+
+
+#: ``min_radius`` of :class:`LandmarkModels`: Algorithm 1 needs ``max_radius`` above it
+_MIN_RADIUS = inspect.signature(LandmarkModels).parameters["min_radius"].default
+
+
+def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulated, threshold, min_samples,
+                     point_noise, max_radius, motion_var, accel, gate, undecided_var=0.0) -> tuple[np.ndarray, tuple]:
+    """The arguments :class:`EKFSlam` and :class:`~artmotion.articulation.slam.graph.GraphSlam`
+    share, checked before anything is built: ``x0`` as a float array ``(3,)`` and ``alphas`` as 4
+    floats; else an :class:`InputError` that names the argument. With ``articulated``, also those
+    of Algorithm 1 (:class:`~artmotion.articulation.online.OnlineEstimator` checked them only at a
+    landmark's first sighting, under its own names)."""
+    x = float_array(x0, "x0")
+    if x.shape != (3,) or not np.isfinite(x).all():
+        raise InputError(f"x0 must be 3 finite numbers (x, y, theta), got {reprlib.repr(x0)}")
+    check_range("dt", dt, 0.0, math.inf, lo_open=True, hi_open=True)
+    a = float_array(alphas, "alphas")
+    if a.shape != (4,) or not (np.isfinite(a).all() and (a >= 0).all()):
+        raise InputError(f"alphas must be 4 finite numbers >= 0 (the control noise of Eq. 4.23), got {reprlib.repr(alphas)}")
+    check_range("range_std", range_std, 0.0, math.inf, lo_open=True, hi_open=True)
+    check_range("bearing_std", bearing_std, 0.0, math.inf, lo_open=True, hi_open=True)
+    check_range("n_max", n_max, 0, 10**6, integer=True)
+    check_range("motion_var", motion_var, 0.0, math.inf, hi_open=True)
+    check_range("undecided_var", undecided_var, 0.0, math.inf, hi_open=True)
+    check_range("gate", gate, 0.0, 1.0, lo_open=True, hi_open=True)
+    if articulated:
+        # as OnlineEstimator (Algorithm 1) requires them
+        check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("min_samples", min_samples, 3, 10**9, integer=True)
+        check_range("point_noise", point_noise, 0.0, math.inf, hi_open=True)
+        check_range("max_radius", max_radius, _MIN_RADIUS, math.inf, lo_open=True, hi_open=True)
+        if accel is not None:
+            check_range("accel", accel, 0.0, math.inf, hi_open=True)
+    return x, tuple(float(v) for v in a)
 
 
 # ---------------------------------------------------------------- the filter
@@ -184,6 +241,10 @@ class EKFSlam:
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
                  undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01,
                  joint_shape: bool = True, joint_curve: bool = True):
+        x0, alphas = _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated,
+                                      threshold=threshold, min_samples=min_samples, point_noise=point_noise,
+                                      max_radius=max_radius, motion_var=motion_var, accel=accel, gate=gate,
+                                      undecided_var=undecided_var)
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])
@@ -220,10 +281,7 @@ class EKFSlam:
     # -- time update (robot and moving landmarks)
     def predict(self, u):
         """The time update with control ``u = (v, omega)``."""
-        U = np.asarray(u, dtype=float) if _numeric(u) else None
-        if U is None or U.shape != (2,) or not np.isfinite(U).all():
-            raise InputError(f"a control must be two finite numbers (v, omega), got {reprlib.repr(u)}")
-        u = (float(U[0]), float(U[1]))
+        u = _check_control(u)
         n = self.n
         mu, P = self.mu, self.P
         xn, Gx, Gu = motion_model(mu[:3], u, self.dt)
@@ -251,7 +309,8 @@ class EKFSlam:
 
     # -- measurement update
     def update(self, ids, zs):
-        """The measurement update with sightings ``zs`` ``(k, 2)`` (range, bearing) of landmarks ``ids`` ``(k,)``."""
+        """The measurement update with sightings ``zs`` ``(k, 2)`` (range, bearing) of landmarks ``ids`` ``(k,)``:
+        ranges in ``[MIN_RANGE, MAX_RANGE]`` m, bearings finite (else an :class:`InputError`, the state untouched)."""
         ids, zs = _check_sightings(ids, zs)
         known = []
         for i, z in zip(ids, zs):

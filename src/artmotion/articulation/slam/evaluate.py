@@ -2,14 +2,25 @@
 
 from __future__ import annotations
 
+import inspect
+import reprlib
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from artmotion.articulation.slam.ekf import EKFSlam, _wrap
-from artmotion.articulation.slam.world import WORLDS, World, make_scenario, make_world, simulate
-from artmotion.errors import InputError, check_range, check_seed
+from artmotion.articulation.slam.world import (
+    WORLDS,
+    World,
+    _check_counts,
+    _check_world_name,
+    _make_scenario,
+    _make_world,
+    _simulate,
+)
+from artmotion.errors import InputError, check_range, check_seed, float_array
 
 #: the back ends compared by :func:`monte_carlo`: name -> (label, constructor keyword arguments);
 #: "graph" is the factor graph of :mod:`~artmotion.articulation.slam.graph` (needs the ``slam`` extra)
@@ -24,8 +35,7 @@ BACKENDS: dict[str, tuple[str, dict]] = {
 
 def make_backend(name: str, sim: dict, **kwargs):
     """A fresh back end ``name`` (see :data:`BACKENDS`) set up for simulated run ``sim``."""
-    if name not in BACKENDS:
-        raise InputError(f"unknown back end {name!r}; choose from {', '.join(BACKENDS)}")
+    _check_backend(name)
     cfg = sim["config"]
     args = (sim["poses"][0], sim["dt"], cfg.alphas, cfg.range_std, cfg.bearing_std, sim["landmarks"].shape[1])
     kw = {**BACKENDS[name][1], **kwargs}
@@ -34,6 +44,38 @@ def make_backend(name: str, sim: dict, **kwargs):
 
         return GraphSlam(*args, **kw)
     return EKFSlam(*args, **kw)
+
+
+def _check_backend(name, what: str = "back end") -> None:
+    if not isinstance(name, str) or name not in BACKENDS:
+        raise InputError(f"unknown {what} {name!r}; choose from {', '.join(BACKENDS)}")
+
+
+#: the constructor's arguments that :func:`make_backend` takes from the simulated run
+_POSITIONAL = {"x0", "dt", "alphas", "range_std", "bearing_std", "n_max"}
+
+
+def _check_options(options) -> dict:
+    """``options`` of :func:`monte_carlo`: back end name -> keyword arguments of its constructor
+    (:class:`~artmotion.articulation.slam.ekf.EKFSlam`, or ``GraphSlam`` for "graph")."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise InputError(f"options must map back end names to dicts of keyword arguments, got {reprlib.repr(options)}")
+    for name, kw in options.items():
+        _check_backend(name, "back end in options:")
+        if not isinstance(kw, Mapping) or not all(isinstance(k, str) for k in kw):
+            raise InputError(f"options[{name!r}] must be a dict of keyword arguments, got {reprlib.repr(kw)}")
+        cls: type = EKFSlam
+        if name == "graph":
+            from artmotion.articulation.slam.graph import GraphSlam
+
+            cls = GraphSlam
+        known = set(inspect.signature(cls).parameters) - _POSITIONAL  # (make_backend passes those from the run)
+        unknown = [k for k in kw if k not in known]
+        if unknown:
+            raise InputError(f"options[{name!r}] names no keyword argument of {cls.__name__}: {', '.join(map(repr, unknown))}")
+    return dict(options)
 
 
 def run_slam(sim: dict, backend: str = "articulated", **kwargs) -> dict:
@@ -73,10 +115,26 @@ def pose_errors(est: np.ndarray, true: np.ndarray, lag: int = 0, stride: int = 5
     the estimated and the true increment (translation: Euclidean norm; rotation: absolute angle).
     ``lag > 0`` averages over increments of ``lag`` steps; ``lag = 0`` over all pairs ``i < j``
     (every ``stride``-th pose; a run shorter than ``stride`` steps compares its first and last pose),
-    which weighs local and global consistency alike.
+    which weighs local and global consistency alike. ``est`` and ``true``: ``(n, 3)`` poses
+    ``(x, y, theta)``, finite, ``n >= 2``; ``lag < n``.
     """
-    est = np.asarray(est, dtype=float)
-    true = np.asarray(true, dtype=float)
+    est, true = float_array(est, "est"), float_array(true, "true")
+    for name, a in (("est", est), ("true", true)):
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise InputError(f"{name} must be an (n, 3) array of poses (x, y, theta), got shape {a.shape}")
+        if not np.isfinite(a).all():
+            raise InputError(f"{name} holds NaN or infinite values")
+    if len(est) != len(true):
+        raise InputError(f"est and true must hold as many poses, got {len(est)} and {len(true)}")
+    if len(est) < 2:
+        raise InputError(f"est and true must hold at least 2 poses, got {len(est)}")
+    lag = check_range("lag", lag, 0, len(est) - 1, integer=True)
+    stride = check_range("stride", stride, 1, 10**9, integer=True)
+    return _pose_errors(est, true, lag, stride)
+
+
+def _pose_errors(est: np.ndarray, true: np.ndarray, lag: int, stride: int) -> dict:
+    """:func:`pose_errors` of checked arrays (a back end that diverged gives NaN errors)."""
     if lag > 0:
         i = np.arange(0, len(est) - lag)
         j = i + lag
@@ -130,6 +188,22 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
     if steps is not None:
         steps = check_range("steps", steps, 2, 10**7, integer=True)
     seed = check_seed(seed, "seed")
+    _check_world_name(world)
+    if landmarks is not None and (not isinstance(landmarks, (tuple, list)) or len(landmarks) not in (0, 3)):
+        raise InputError(f"landmarks must be three counts (all, prismatic, revolute), got {reprlib.repr(landmarks)}")
+    if landmarks:
+        landmarks = _check_counts(*landmarks, names=("landmarks[0] (all)", "landmarks[1] (prismatic)",
+                                                     "landmarks[2] (revolute)"))
+    try:
+        names = list(backends) if not isinstance(backends, str) else []
+    except TypeError:
+        names = []
+    if not names:
+        raise InputError(f"backends must be a list of back end names ({', '.join(BACKENDS)}), got {reprlib.repr(backends)}")
+    for name in names:
+        _check_backend(name)
+    backends = names
+    options = _check_options(options)
     steps = steps or WORLDS[world][1]
     if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= steps:
         raise InputError(f"lag must be a whole number of steps in [0, {steps}] (the run's length; 0: all pairs), got {lag!r}")
@@ -137,13 +211,15 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
     last = None
     for r in range(runs):
         s = seed + 1000 * r
-        w = make_world(*landmarks, seed=s) if landmarks else make_scenario(world, seed=s)
-        sim = simulate(w, steps, seed=s + 1)
+        # (the seeds of later runs may pass 2**32 - 1: NumPy's generators take them)
+        rng = np.random.default_rng(s)
+        w = _make_world(*landmarks, 10.0, rng) if landmarks else _make_scenario(world, rng, 10.0)
+        sim = _simulate(w, steps, None, np.random.default_rng(s + 1), 10.0)
         res = {}
         for name in backends:
-            out = run_slam(sim, name, **(options or {}).get(name, {}))
-            e = pose_errors(out["smoothed"], sim["poses"], lag=lag)
-            e1 = pose_errors(out["smoothed"], sim["poses"], lag=1)
+            out = run_slam(sim, name, **options.get(name, {}))
+            e = _pose_errors(out["smoothed"], sim["poses"], lag, 5)
+            e1 = _pose_errors(out["smoothed"], sim["poses"], 1, 5)
             e["step_translation_error"], e["step_rotation_error"] = e1["translation_error"], e1["rotation_error"]
             e["nees"] = float(nees(out["poses"], out["covs"], sim["poses"]).mean())
             e["seconds_per_step"] = out["seconds"] / steps

@@ -29,9 +29,19 @@ from typing import Any
 
 import numpy as np
 
-from artmotion.articulation.slam.ekf import _wrap, control_noise, gate_threshold, inverse_observation, motion_model, observe
+from artmotion.articulation.slam.ekf import (
+    _check_arguments,
+    _check_control,
+    _check_sightings,
+    _wrap,
+    control_noise,
+    gate_threshold,
+    inverse_observation,
+    motion_model,
+    observe,
+)
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 
 __all__ = ["GraphSlam", "moving_observation", "taylor_gap"]
 
@@ -152,6 +162,14 @@ class GraphSlam:
                  accel: float | None = 0.1, gating: bool = True, history: bool = False,
                  joint_noise: float | None = None, relinearize_threshold: float = 0.1, relinearize_skip: int = 10,
                  gate: float = 0.01):
+        x0, alphas = _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated,
+                                      threshold=threshold, min_samples=min_samples, point_noise=point_noise,
+                                      max_radius=max_radius, motion_var=motion_var, accel=accel, gate=gate)
+        if joint_noise is not None:
+            check_range("joint_noise", joint_noise, 0.0, math.inf, hi_open=True)
+        check_range("relinearize_threshold", relinearize_threshold, 0.0, math.inf, hi_open=True)
+        # (0 divides by zero inside iSAM2: the process dies of SIGFPE)
+        check_range("relinearize_skip", relinearize_skip, 1, 10**9, integer=True)
         gtsam = _gtsam()
         self._gtsam: Any = gtsam
         self.dt, self.alphas = dt, alphas
@@ -183,7 +201,6 @@ class GraphSlam:
         self._remove: list[int] = []
 
         self.k = 0
-        x0 = np.asarray(x0, dtype=float)
         self._pose_value = gtsam.Pose2(*x0)
         self._pose = x0.copy()
         self._cov = np.eye(3) * 1e-6
@@ -224,6 +241,7 @@ class GraphSlam:
         """Odometry factor ``X(k) -> X(k+1)``: the pose increment of Eq. 4.20-4.21 from the origin,
         covariance ``J_u M J_u^T`` (Eq. 4.23, 4.26) in the body frame of ``X(k)`` (rank 2: a small
         regulariser keeps it invertible)."""
+        u = _check_control(u)
         gtsam = self._gtsam
         inc, _, Gu = motion_model(np.zeros(3), u, self.dt)
         M = control_noise(u, self.alphas)
@@ -244,7 +262,7 @@ class GraphSlam:
     # -- sightings
     def update(self, ids, zs) -> None:
         """The sightings of step ``k``, then one iSAM2 update."""
-        for i, z in zip(np.asarray(ids, dtype=int).tolist(), np.asarray(zs, dtype=float).reshape(-1, 2)):
+        for i, z in zip(*_check_sightings(ids, zs)):
             if self.articulated and i not in self.models.verdict:
                 self._seen.setdefault(i, []).append((self.k, z))
                 if self._learn(i, z):

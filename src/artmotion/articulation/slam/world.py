@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from artmotion.articulation.slam.ekf import _wrap, control_noise, motion_model
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range, check_seed
 
 
 @dataclass
@@ -48,11 +48,32 @@ def make_world(n_landmarks: int = 42, n_prismatic: int = 1, n_revolute: int = 1,
                seed: int = 0) -> World:
     """Landmarks scattered in a ring around the robot's circular path (radius ``radius``); the moving
     ones sit close to the path so the robot sees them often."""
-    n_static = n_landmarks - n_prismatic - n_revolute
-    if n_static < 0 or min(n_prismatic, n_revolute) < 0:
-        raise InputError("landmark counts must be non-negative and add up to at most --landmarks")
-    rng = np.random.default_rng(seed)
-    static = _ring(rng, n_static, radius, 1.5, 4.0)
+    counts = _check_counts(n_landmarks, n_prismatic, n_revolute)
+    return _make_world(*counts, _check_radius(radius), np.random.default_rng(check_seed(seed, "seed")))
+
+
+#: most landmarks a world may have
+_MAX_LANDMARKS = 10**6
+
+
+def _check_counts(n_landmarks, n_prismatic, n_revolute,
+                  names=("n_landmarks", "n_prismatic", "n_revolute")) -> tuple[int, int, int]:
+    """Landmark counts (all, prismatic, revolute) as whole numbers, the moving ones at most all of
+    them; else an :class:`InputError` with the arguments' ``names``."""
+    n, p, r = (check_range(name, v, 0, _MAX_LANDMARKS, integer=True)
+               for name, v in zip(names, (n_landmarks, n_prismatic, n_revolute)))
+    if p + r > n:
+        raise InputError(f"{names[1]} ({p}) and {names[2]} ({r}) add up to more than {names[0]} ({n})")
+    return n, p, r
+
+
+def _check_radius(radius) -> float:
+    return check_range("radius", radius, 0.0, math.inf, lo_open=True, hi_open=True)
+
+
+def _make_world(n_landmarks: int, n_prismatic: int, n_revolute: int, radius: float, rng) -> World:
+    """:func:`make_world` with checked arguments and a random generator ``rng``."""
+    static = _ring(rng, n_landmarks - n_prismatic - n_revolute, radius, 1.5, 4.0)
     moving = []
     for i in range(n_prismatic):
         a = 2 * np.pi * (i + 0.25) / max(n_prismatic, 1)
@@ -114,11 +135,20 @@ WORLDS = {
 
 def make_scenario(name: str, seed: int = 0, radius: float = 10.0) -> World:
     """The world called ``name`` (one of :data:`WORLDS`), laid out at random from ``seed``."""
-    if name not in WORLDS:
+    _check_world_name(name)
+    return _make_scenario(name, np.random.default_rng(check_seed(seed, "seed")), _check_radius(radius))
+
+
+def _check_world_name(name) -> str:
+    if not isinstance(name, str) or name not in WORLDS:
         raise InputError(f"unknown world {name!r}; choose one of {', '.join(WORLDS)}")
+    return name
+
+
+def _make_scenario(name: str, rng, radius: float) -> World:
+    """:func:`make_scenario` with checked arguments and a random generator ``rng``."""
     if name == "table4.2":
-        return make_world(42, 1, 1, radius=radius, seed=seed)
-    rng = np.random.default_rng(seed)
+        return _make_world(42, 1, 1, radius, rng)
     if name == "corridor":
         return World(_ring(rng, 24, radius, 1.8, 2.2), _doors(rng, 16, radius))
     if name == "warehouse":
@@ -145,8 +175,17 @@ def simulate(world: World, steps: int, cfg: SimConfig | None = None, seed: int =
     """Drive the robot around a circle (commanded ``v, w``) with noisy execution; observe landmarks
     in range and field of view. Returns ``poses`` (steps+1, 3), ``controls`` (steps, 2),
     ``observations`` (list per step of ``(ids, z)``) and ``landmarks`` (steps+1, L, 2)."""
+    if not isinstance(world, World):
+        raise InputError(f"world must be a World (make_world, make_scenario), got {type(world).__name__}")
+    steps = check_range("steps", steps, 1, 10**7, integer=True)
+    if cfg is not None and not isinstance(cfg, SimConfig):
+        raise InputError(f"cfg must be a SimConfig or None, got {type(cfg).__name__}")
+    return _simulate(world, steps, cfg, np.random.default_rng(check_seed(seed, "seed")), _check_radius(radius))
+
+
+def _simulate(world: World, steps: int, cfg: SimConfig | None, rng, radius: float) -> dict:
+    """:func:`simulate` with checked arguments and a random generator ``rng``."""
     cfg = cfg or SimConfig()
-    rng = np.random.default_rng(seed)
     x = np.array([radius, 0.0, math.pi / 2])
     poses = [x.copy()]
     lms = [world.positions(0.0)]

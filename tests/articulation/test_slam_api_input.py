@@ -1,0 +1,185 @@
+"""Bad input to the SLAM Python API is an InputError that names the argument and what was got, raised
+before any state is touched; valid input runs as before."""
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+
+from artmotion.articulation.slam import EKFSlam, make_world, monte_carlo, pose_errors, simulate
+from artmotion.articulation.slam.ekf import gate_threshold
+from artmotion.articulation.slam.world import make_scenario
+from artmotion.errors import MAX_SEED, InputError
+
+HAVE_GTSAM = importlib.util.find_spec("gtsam") is not None
+needs_gtsam = pytest.mark.skipif(not HAVE_GTSAM, reason="gtsam is not installed")
+
+ARGS = dict(x0=[0.0, 0.0, 0.0], dt=0.1, alphas=(0.05, 0.005, 0.005, 0.05), range_std=0.1, bearing_std=0.02, n_max=5)
+BACKENDS = [pytest.param("ekf", id="ekf"), pytest.param("ekf_articulated", id="ekf_articulated"),
+            pytest.param("graph", id="graph", marks=needs_gtsam)]
+
+
+def _backend(kind: str, **kw):
+    if kind == "graph":
+        from artmotion.articulation.slam.graph import GraphSlam
+
+        return GraphSlam(**{**ARGS, **kw})
+    return EKFSlam(**{**ARGS, "articulated": kind == "ekf_articulated", **kw})
+
+
+def _state(f):
+    if hasattr(f, "mu"):
+        return f.mu[:f.n].tolist(), f.P[:f.n, :f.n].tolist(), f.k, dict(f.kinds)
+    return f.pose.tolist(), f.pose_cov.tolist(), f.k, dict(f.kinds)
+
+
+# -- 1. sightings: a range of 0 or 1e200 turned the whole state to NaN for good, a negative one was
+#    taken (and moved the pose); the graph back end took a flat list, a NaN control, a range of 0
+#    (gtsam: "indeterminate linear system")
+@pytest.mark.parametrize("kind", BACKENDS)
+@pytest.mark.parametrize("zs, what", [
+    ([[5.0, 0.1], [0.0, 0.0]], r"zs\[1\] of landmark 1 has range 0: ranges must lie in \[1e-06, 1e\+06\]"),
+    ([[5.0, 0.1], [-5.0, 0.0]], r"zs\[1\] of landmark 1 has range -5:"),
+    ([[1e200, 0.1], [5.0, 0.0]], r"zs\[0\] of landmark 0 has range 1e\+200:"),
+    ([[1e-300, 0.1], [5.0, 0.0]], r"zs\[0\] of landmark 0 has range 1e-300:"),
+    ([[5.0, 0.1], [math.nan, 0.0]], r"zs\[1\] of landmark 1 has range nan:"),
+    ([[5.0, 0.1], [5.0, math.inf]], r"zs\[1\] of landmark 1 has bearing inf: bearings must be finite"),
+    ([5.0, 0.1, 5.0, 0.0], r"sightings zs must be \(range, bearing\) pairs"),
+])
+def test_bad_sightings_are_refused_before_the_state_is_touched(kind, zs, what):
+    f = _backend(kind)
+    f.predict([1.0, 0.1])
+    f.update([0, 1], [[5.0, 0.1], [6.0, -0.2]])
+    before = _state(f)
+    with pytest.raises(InputError, match=what):
+        f.update([0, 1], zs)
+    assert _state(f) == before
+    for _ in range(3):  # and the back end goes on, finite
+        f.predict([0.0, 0.0])
+        f.update([0, 1], [[5.0, 0.1], [6.0, -0.2]])
+    assert np.isfinite(f.pose).all() and np.isfinite(f.pose_cov).all()
+
+
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_both_back_ends_refuse_a_bad_control_alike(kind):
+    f = _backend(kind)
+    for u in ([math.nan, 0.1], [1.0, math.inf], [1.0], "vw"):
+        with pytest.raises(InputError, match="a control must be two finite numbers"):
+            f.predict(u)
+    assert f.k == 0 and np.isfinite(f.pose).all()
+
+
+# -- 2. the constructors' arguments: none was checked (a NaN x0, a negative dt or noise ran on to
+#    nonsense; Algorithm 1's were refused at the first sighting under names the user never passed)
+BAD_ARGS = [
+    ({"x0": [math.nan, 0.0, 0.0]}, "x0 must be 3 finite numbers"),
+    ({"x0": [0.0, 0.0]}, "x0 must be 3 finite numbers"),
+    ({"x0": "abc"}, "x0 must be"),
+    ({"dt": -1.0}, r"dt must be a number in \(0, inf\), got -1"),
+    ({"dt": 0.0}, "dt must be"),
+    ({"dt": math.nan}, "dt must be"),
+    ({"alphas": (-1.0, 0.0, 0.0, 0.0)}, "alphas must be 4 finite numbers >= 0"),
+    ({"alphas": (1.0, 1.0, 1.0)}, "alphas must be 4"),
+    ({"alphas": (1.0, 1.0, math.inf, 1.0)}, "alphas must be 4"),
+    ({"range_std": -1.0}, r"range_std must be a number in \(0, inf\), got -1"),
+    ({"range_std": 0.0}, "range_std must be"),
+    ({"bearing_std": 0.0}, "bearing_std must be"),
+    ({"bearing_std": math.inf}, "bearing_std must be"),
+    ({"n_max": -1}, "n_max must be a whole number"),
+    ({"n_max": 2.5}, "n_max must be a whole number"),
+    ({"motion_var": -1.0}, "motion_var must be"),
+    ({"gate": 0.0}, r"gate must be a number in \(0, 1\), got 0"),
+    ({"gate": 1.0}, "gate must be"),
+    ({"gate": math.nan}, "gate must be"),
+    ({"articulated": True, "threshold": 2.0}, r"threshold must be a number in \(0, 1\), got 2"),
+    ({"articulated": True, "threshold": 0.0}, "threshold must be"),
+    ({"articulated": True, "min_samples": 0}, r"min_samples must be a whole number in \[3, "),
+    ({"articulated": True, "min_samples": 7.5}, "min_samples must be"),
+    ({"articulated": True, "point_noise": -1.0}, r"point_noise must be a number in \[0, inf\), got -1"),
+    ({"articulated": True, "max_radius": -1.0}, r"max_radius must be a number in \(0.5, inf\), got -1"),
+    ({"articulated": True, "max_radius": 0.3}, "max_radius must be"),
+    ({"articulated": True, "accel": -1.0}, "accel must be"),
+]
+
+
+@pytest.mark.parametrize("cls", ["ekf", pytest.param("graph", marks=needs_gtsam)])
+@pytest.mark.parametrize("kw, what", BAD_ARGS)
+def test_constructor_arguments_are_checked(cls, kw, what):
+    kind = "graph" if cls == "graph" else "ekf"
+    with pytest.raises(InputError, match=what) as e:
+        _backend(kind, **kw)
+    assert "noise_floor" not in str(e.value) and "radius_range" not in str(e.value)
+
+
+@pytest.mark.parametrize("kw, what", [({"undecided_var": -1.0}, "undecided_var must be"),
+                                      ({"undecided_var": math.nan}, "undecided_var must be")])
+def test_ekf_only_arguments_are_checked(kw, what):
+    with pytest.raises(InputError, match=what):
+        _backend("ekf", **kw)
+
+
+@needs_gtsam
+@pytest.mark.parametrize("kw, what", [
+    ({"joint_noise": -1.0}, "joint_noise must be"),
+    ({"relinearize_threshold": math.nan}, "relinearize_threshold must be"),
+    ({"relinearize_skip": 0}, r"relinearize_skip must be a whole number in \[1, "),  # iSAM2 died of SIGFPE
+    ({"relinearize_skip": 2.5}, "relinearize_skip must be"),
+])
+def test_graph_only_arguments_are_checked(kw, what):
+    with pytest.raises(InputError, match=what):
+        _backend("graph", **kw)
+
+
+def test_gate_threshold_refuses_with_an_input_error():
+    for p in (0.0, 1.0, math.nan, "0.1"):
+        with pytest.raises(InputError, match=r"p must be a number in \(0, 1\)"):
+            gate_threshold(p)
+
+
+# -- 3. worlds, runs and errors
+@pytest.mark.parametrize("call, what", [
+    # (KeyError: the default steps were read from WORLDS[world] before the name was checked)
+    (lambda: monte_carlo(runs=1, world="Table4.2", backends=("ekf",)), "unknown world 'Table4.2'"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), options=[1]), "options must map back end names"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), options={"ekf": 1}), r"options\['ekf'\] must be a dict"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), options={"ekff": {}}), "unknown back end in options: 'ekff'"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), options={"ekf": {"foo": 1}}),
+     r"options\['ekf'\] names no keyword argument of EKFSlam: 'foo'"),
+    (lambda: monte_carlo(runs=1, steps=5, backends="ekf"), "backends must be a list of back end names"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), landmarks=(5, 3, 3)),
+     r"landmarks\[1\] \(prismatic\) \(3\) and landmarks\[2\] \(revolute\) \(3\) add up to more than landmarks\[0\]"),
+    (lambda: monte_carlo(runs=1, steps=5, backends=("ekf",), landmarks=(5, 1)), "landmarks must be three counts"),
+    (lambda: make_world(10, seed=-1), r"seed must be a whole number in \[0, 4294967295\], got -1"),
+    (lambda: make_scenario("corridor", seed=-1), "seed must be"),
+    (lambda: make_world(10, radius=math.nan), r"radius must be a number in \(0, inf\), got nan"),
+    (lambda: make_world(10, radius=-1.0), "radius must be"),
+    (lambda: make_scenario("warehouse", radius=math.inf), "radius must be"),
+    (lambda: make_world(2.5, 0, 0), "n_landmarks must be a whole number"),
+    (lambda: make_world(5, 3, 3), r"n_prismatic \(3\) and n_revolute \(3\) add up to more than n_landmarks \(5\)"),
+    (lambda: simulate(make_world(10), -3), r"steps must be a whole number in \[1, "),
+    (lambda: simulate(make_world(10), 0), "steps must be"),
+    (lambda: simulate(make_world(10), 3, seed=-1), "seed must be"),
+    (lambda: simulate(make_world(10), 3, radius=0.0), "radius must be"),
+    (lambda: simulate("table4.2", 3), "world must be a World"),
+    (lambda: pose_errors(np.zeros((1, 3)), np.zeros((1, 3))), "at least 2 poses, got 1"),
+    (lambda: pose_errors(np.zeros((5, 3)), np.zeros((5, 3)), lag=10), r"lag must be a whole number in \[0, 4\], got 10"),
+    (lambda: pose_errors(np.zeros((5, 3)), np.zeros((5, 3)), lag=-1), "lag must be"),
+    (lambda: pose_errors(np.zeros((5, 3)), np.zeros((5, 3)), stride=0), "stride must be"),
+    (lambda: pose_errors(np.zeros((5, 3)), np.zeros((4, 3))), "est and true must hold as many poses, got 5 and 4"),
+    (lambda: pose_errors(np.zeros((5, 2)), np.zeros((5, 2))), r"est must be an \(n, 3\) array of poses"),
+    (lambda: pose_errors(np.zeros((5, 3)), np.full((5, 3), math.nan)), "true holds NaN or infinite values"),
+    (lambda: pose_errors("abc", np.zeros((5, 3))), "est must be an array of numbers"),
+])
+def test_world_and_evaluation_arguments_are_checked(call, what):
+    with pytest.raises(InputError, match=what):
+        call()
+
+
+def test_valid_edge_cases_still_run():
+    """Guards, not mends: the largest seed still runs (later runs' seeds pass 2**32 - 1, which
+    NumPy's generators take); lag n - 1 and lists are fine; a whole float count is a count."""
+    res = monte_carlo(runs=2, steps=5, seed=MAX_SEED, backends=("ekf",))
+    assert res["runs"] == 2 and math.isfinite(res["ekf"]["translation_error"]["mean"])
+    p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.1], [2.0, 0.5, 0.2]]
+    assert pose_errors(p, p, lag=2)["translation_error"] == 0.0

@@ -18,10 +18,11 @@ planar         ``origin``, ``normal``, in-plane ``u``, ``v``  2-D coordinates
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
-from artmotion.errors import InputError, float_array
+from artmotion.errors import InputError, check_range, float_array
 
 __all__ = [
     "PointModel",
@@ -75,15 +76,72 @@ def _orthonormal_to(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, _cross3(n, u)
 
 
+def _points_2d(P, name: str = "P") -> np.ndarray:
+    """``P`` as an ``(n, 2)`` float array of finite coordinates (at most :data:`MAX_COORD`), else an
+    :class:`InputError` naming ``name``."""
+    P = float_array(P, name)
+    if P.ndim != 2 or P.shape[1] != 2:
+        hint = " (project 3-D points onto the circle's plane first)" if P.ndim == 2 and P.shape[1] == 3 else ""
+        raise InputError(f"{name} must be an (n, 2) array of 2-D points, got shape {P.shape}{hint}")
+    if not np.all(np.isfinite(P)):
+        raise InputError(f"{name} contains NaN or infinite values")
+    if P.size and float(np.abs(P).max()) > MAX_COORD:
+        raise InputError(f"{name} must be coordinates of magnitude at most {MAX_COORD:g}")
+    return P
+
+
+def _on_one_line(P: np.ndarray, scale: float = 0.0) -> bool:
+    """True if the 2-D points ``P`` (at least 3) lie on one line or are one point, to the rounding
+    of coordinates of magnitude ``scale`` (and of their own): no circle passes through them, or
+    every one does (its centre and radius are then anything the arithmetic makes up)."""
+    sv = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    return not sv[1] > 1e-12 * max(float(sv[0]), float(np.abs(P).max()), scale)
+
+
+def _check_circle_points(P: np.ndarray, name: str, weights=None) -> None:
+    """At least 3 points (of positive weight) not all on one line or one point, else an :class:`InputError`."""
+    used = P if weights is None else P[weights > 0]
+    which = "" if weights is None else " of positive weight"
+    if len(used) < 3:
+        noun = "point" if len(used) == 1 else "points"
+        raise InputError(f"a circle needs at least 3 points, got {len(used)} {noun}{which} in {name}")
+    if _on_one_line(used):
+        raise InputError(f"the points{which} in {name} lie on one line or are one point: they do not span a circle")
+
+
 def fit_circle_2d(P: np.ndarray, init: tuple | None = None, weights=None) -> tuple[np.ndarray, float]:
     """Circle through 2-D points: algebraic (Kasa) fit, refined by Gauss-Newton on the geometric
     distance. Linear in ``(cx, cy, r^2 - |c|^2)`` — the "separate" estimate of Table 4.1.
 
+    ``P``: an ``(n, 2)`` array of at least 3 points not all on one line (nor one point).
     ``init``: a previous circle ``(centre, radius)``; Gauss-Newton starts from it instead of the
-    algebraic fit when its geometric cost is lower (re-fits as samples arrive converge in fewer steps).
-    ``weights``: per-point weights (robust re-weighting), or None for all ones.
+    algebraic fit when its geometric cost is lower (re-fits as samples arrive converge in fewer steps;
+    a non-finite or out-of-scale one is not used).
+    ``weights``: per-point weights (robust re-weighting; finite, non-negative), or None for all ones.
     """
-    P = np.asarray(P, dtype=float)
+    P = _points_2d(P, "P")
+    if weights is not None:
+        weights = float_array(weights, "weights")
+        if weights.shape != (len(P),):
+            raise InputError(f"weights must hold one weight per point ({len(P)}), got shape {weights.shape}")
+        if not (np.all(np.isfinite(weights)) and np.all(weights >= 0.0)):
+            raise InputError("weights must be finite and non-negative")
+    _check_circle_points(P, "P", weights)
+    if init is not None:
+        try:
+            centre, radius = init
+        except (TypeError, ValueError):
+            raise InputError(f"init must be a circle (centre, radius), got {init!r}") from None
+        centre = float_array(centre, "init's centre")
+        if centre.shape != (2,) or isinstance(radius, bool) or not isinstance(radius, numbers.Real):
+            raise InputError(f"init must be a circle (centre: 2 numbers, radius: a number), got {init!r}")
+        init = (centre, float(radius))
+    return _circle_2d(P, init, weights)
+
+
+def _circle_2d(P: np.ndarray, init: tuple | None = None, weights=None) -> tuple[np.ndarray, float]:
+    """:func:`fit_circle_2d` on points already checked (or, for Algorithm 1's own revolute model,
+    points on a line or at one point, whose circle is scored and loses)."""
     w = np.ones(len(P)) if weights is None else np.asarray(weights, dtype=float)
     mu = (w @ P) / w.sum()
     Q = P - mu
@@ -149,12 +207,22 @@ def fit_circle_joint(t: np.ndarray, P: np.ndarray, theta0: float | None = None, 
 
     Non-linear least squares in ``(cx, cy, r, theta0, w)``; needs a starting guess, taken from the
     chord (mean of the points as centre, unit radius, angle of the first point, small velocity)
-    unless given. Returns ``(centre, radius, theta0, omega)``.
+    unless given. ``t``: one time per point; ``P``: ``(n, 2)``, at least 3 points not all on one
+    line. Returns ``(centre, radius, theta0, omega)``.
     """
     from scipy.optimize import least_squares
 
-    t = np.asarray(t, dtype=float)
-    P = np.asarray(P, dtype=float)
+    P = _points_2d(P, "P")
+    t = float_array(t, "t")
+    if t.shape != (len(P),):
+        raise InputError(f"t must hold one time per point ({len(P)}), got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise InputError("t contains NaN or infinite values")
+    _check_circle_points(P, "P")
+    if theta0 is not None:
+        theta0 = check_range("theta0", theta0, -math.inf, math.inf, lo_open=True, hi_open=True)
+    if omega is not None:
+        omega = check_range("omega", omega, -math.inf, math.inf, lo_open=True, hi_open=True)
     c0 = P.mean(axis=0)
     d0 = P[0] - c0
     r0 = float(np.sqrt(((P - c0) ** 2).sum(axis=1)).mean())
@@ -182,21 +250,35 @@ class PointModel:
     min_points = 1
     dims: tuple[int, ...] = (3,)
 
+    def _check_points(self, X: np.ndarray, dims: tuple[int, ...], min_points: int = 0, fitted: bool = False) -> None:
+        """An :class:`InputError` unless ``X`` is an ``(n, d)`` array (``d`` in ``dims``) of at least
+        ``min_points`` finite points of magnitude at most :data:`MAX_COORD`."""
+        if X.ndim != 2 or X.shape[1] not in dims:
+            want = " or ".join(f"(n, {d})" for d in dims)
+            like = " like the points it was fitted to" if fitted else ""
+            raise InputError(f"{self.name} model: points must be an {want} array{like}, got shape {X.shape}")
+        if len(X) < min_points:
+            raise InputError(f"{self.name} model: needs at least {min_points} "
+                             f"point{'s' if min_points > 1 else ''}, got {len(X)}")
+        if not np.all(np.isfinite(X)):
+            raise InputError(f"{self.name} model: points contain NaN or infinite values")
+        if X.size and float(np.abs(X).max()) > MAX_COORD:
+            raise InputError(f"{self.name} model: points must be coordinates of magnitude at most {MAX_COORD:g}")
+
+    def _points_input(self, X, dim: int | None) -> np.ndarray:
+        """Points given to a fitted model (``motion``, ``residuals``): an ``(n, dim)`` float array
+        (``dim``: its configuration's dimension; None: any the model takes) of finite coordinates,
+        checked as :meth:`fit` checks them (``n`` may be 0); else an :class:`InputError`."""
+        X = float_array(X, "points")
+        self._check_points(X, self.dims if dim is None else (dim,), fitted=dim is not None)
+        return X
+
     def _fit_input(self, X, weights) -> tuple[np.ndarray, np.ndarray | None]:
         """``X`` and ``weights`` as float arrays, checked: finite points of a dimension the model
         takes, at least :attr:`min_points` of them, and one finite, non-negative weight per point
         with a positive sum; else an :class:`InputError`."""
         X = float_array(X, "points")
-        if X.ndim != 2 or X.shape[1] not in self.dims:
-            want = " or ".join(f"(n, {d})" for d in self.dims)
-            raise InputError(f"{self.name} model: points must be an {want} array, got shape {X.shape}")
-        if len(X) < self.min_points:
-            raise InputError(f"{self.name} model: needs at least {self.min_points} "
-                             f"point{'s' if self.min_points > 1 else ''}, got {len(X)}")
-        if not np.all(np.isfinite(X)):
-            raise InputError(f"{self.name} model: points contain NaN or infinite values")
-        if float(np.abs(X).max()) > MAX_COORD:
-            raise InputError(f"{self.name} model: points must be coordinates of magnitude at most {MAX_COORD:g}")
+        self._check_points(X, self.dims, self.min_points)
         if weights is not None:
             weights = float_array(weights, "weights")
             if weights.shape != (len(X),):
@@ -209,11 +291,36 @@ class PointModel:
         return InputError(f"{self.name} model is not fitted: call fit(points) first (or give its configuration)")
 
     def _motion_input(self, q) -> np.ndarray:
-        """Motion variables as an ``(n, dof)`` float array (finite), else an :class:`InputError`."""
+        """Motion variables as an ``(n, dof)`` float array (finite), else an :class:`InputError`.
+        With one motion variable ``n`` values (or one number) are taken as a column; with more,
+        a 1-D array of ``dof`` values is one point's."""
         q = float_array(q, "motion variables")
-        if q.size % self.dof or not np.all(np.isfinite(q)):
-            raise InputError(f"{self.name} model: motion variables must be finite numbers, {self.dof} per point")
-        return q.reshape(-1, self.dof)
+        dof = self.dof
+        if q.ndim == 2 and q.shape[1] == dof:
+            pass
+        elif dof == 1 and q.ndim <= 1:
+            q = q.reshape(-1, 1)
+        elif dof > 1 and q.shape == (dof,):
+            q = q.reshape(1, dof)
+        else:
+            also = " (or n values)" if dof == 1 else f" (or one point's {dof} values)" if dof > 1 else ""
+            raise InputError(f"{self.name} model: motion variables must be an (n, {dof}) array{also}, got shape {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise InputError(f"{self.name} model: motion variables must be finite numbers, got NaN or infinite values")
+        return q
+
+    def _one_motion(self, q) -> np.ndarray:
+        """One point's motion variables (for :meth:`jacobian`): ``dof`` finite numbers, else an :class:`InputError`."""
+        q = float_array(q, "motion variables").reshape(-1)
+        if q.size != self.dof or not np.all(np.isfinite(q)):
+            got = "NaN or infinite values" if q.size == self.dof else f"{q.size} value{'s' if q.size != 1 else ''}"
+            raise InputError(f"{self.name} model: jacobian takes one point's motion variables, {self.dof} finite "
+                             f"number{'s' if self.dof != 1 else ''}, got {got}")
+        return q
+
+    def _scalar_motion(self, q) -> float:
+        """One motion variable as a finite number (``predict1``, ``jacobian1``), else an :class:`InputError`."""
+        return check_range(f"{self.name} model: the motion variable", q, -math.inf, math.inf, lo_open=True, hi_open=True)
 
     #: configuration parameters of the model for 3-D and for 2-D points (its charge in the BIC score)
     n_params = {3: 0, 2: 0}
@@ -236,6 +343,7 @@ class PointModel:
 
     def residuals(self, X: np.ndarray) -> np.ndarray:
         """Distance of each point to the model's manifold."""
+        X = float_array(X, "points")
         return np.linalg.norm(X - self.predict(self.motion(X)), axis=1)
 
     def configuration(self, dim: int = 3) -> dict:
@@ -270,14 +378,16 @@ class StaticModel(PointModel):
         return self
 
     def motion(self, X):
+        X = self._points_input(X, None if self.centre is None else len(self.centre))
         return np.zeros((len(X), 0))
 
     def predict(self, q):
         if self.centre is None:
             raise self._not_fitted()
-        return np.repeat(self.centre[None, :], len(q), axis=0)
+        return np.repeat(self.centre[None, :], len(self._motion_input(q)), axis=0)
 
     def jacobian(self, q):
+        self._one_motion(q)
         return np.zeros((3, 0))
 
     def configuration(self, dim=3):
@@ -311,7 +421,7 @@ class PrismaticModel(PointModel):
     def motion(self, X):
         if self.origin is None or self.direction is None:
             raise self._not_fitted()
-        return ((np.asarray(X) - self.origin) @ self.direction)[:, None]
+        return ((self._points_input(X, len(self.origin)) - self.origin) @ self.direction)[:, None]
 
     def predict(self, q):
         if self.origin is None or self.direction is None:
@@ -321,16 +431,18 @@ class PrismaticModel(PointModel):
     def jacobian(self, q):
         if self.direction is None:
             raise self._not_fitted()
+        self._one_motion(q)
         return self.direction.reshape(-1, 1)
 
     def predict1(self, q: float) -> np.ndarray:
         if self.origin is None or self.direction is None:
             raise self._not_fitted()
-        return self.origin + q * self.direction
+        return self.origin + self._scalar_motion(q) * self.direction
 
     def jacobian1(self, q: float) -> np.ndarray:
         if self.direction is None:
             raise self._not_fitted()
+        self._scalar_motion(q)
         return self.direction
 
     def configuration(self, dim=3):
@@ -340,12 +452,18 @@ class PrismaticModel(PointModel):
 
 
 class RevoluteModel(PointModel):
-    """Point on a circle: ``f(C, q) = c + r (cos q u + sin q v)``, ``v = axis x u``."""
+    """Point on a circle: ``f(C, q) = c + r (cos q u + sin q v)``, ``v = axis x u``.
+
+    ``fit`` refuses points that do not span a circle (all on one line, or one point), whose centre
+    and radius would be made up by the arithmetic, unless :attr:`require_circle` is False: Algorithm 1
+    (online.py) fits every candidate to every track and lets the evidence reject such a circle."""
 
     name = "revolute"
     dof = 1
     n_params = {3: 6, 2: 3}  # the circle's plane (3-D only), its centre in the plane and radius
     min_points = 3
+    #: refuse points on one line or at one point (see the class doc)
+    require_circle = True
 
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
         self.centre = None if centre is None else np.asarray(centre, dtype=float)
@@ -366,11 +484,17 @@ class RevoluteModel(PointModel):
         n = _unit(self.planar_axis) if self.planar_axis is not None else _principal_axes(X, mu, weights)[2]
         e1, e2 = _orthonormal_to(n)
         P = np.column_stack([(X - mu) @ e1, (X - mu) @ e2])
+        if self.require_circle:
+            used = P if weights is None else P[weights > 0]
+            if len(used) < 3 or _on_one_line(used, float(np.abs(X).max())):
+                which = "" if weights is None else ", counting those of positive weight"
+                raise InputError(f"{self.name} model: the points do not span a circle (they lie on one line or "
+                                 f"are one point{which})")
         init = None
         if getattr(self, "warm", False) and self.centre is not None and self.radius is not None:
             d = self.centre - mu
             init = (np.array([d @ e1, d @ e2]), self.radius)
-        c2, r = fit_circle_2d(P, init, weights)
+        c2, r = _circle_2d(P, init, weights)
         centre = mu + c2[0] * e1 + c2[1] * e2
         # orient the axis so that the angle grows along the track (right-hand rule)
         a0 = X[0] - centre
@@ -390,7 +514,8 @@ class RevoluteModel(PointModel):
     def motion(self, X):
         if not self._fitted():
             raise self._not_fitted()
-        d = np.asarray(X) - self.centre
+        assert self.centre is not None  # fitted
+        d = self._points_input(X, len(self.centre)) - self.centre
         ang = np.arctan2(d @ self.v, d @ self.u)
         return np.unwrap(ang)[:, None]
 
@@ -403,18 +528,20 @@ class RevoluteModel(PointModel):
     def jacobian(self, q):
         if not self._fitted():
             raise self._not_fitted()
-        q = float(np.asarray(q).reshape(-1)[0])
+        q = float(self._one_motion(q)[0])
         assert self.u is not None  # fitted
         return (self.radius * (-math.sin(q) * self.u + math.cos(q) * self.v)).reshape(3, 1)
 
     def predict1(self, q: float) -> np.ndarray:
         if self.u is None or self.centre is None:
             raise self._not_fitted()
+        q = self._scalar_motion(q)
         return self.centre + (self.radius * math.cos(q)) * self.u + (self.radius * math.sin(q)) * self.v
 
     def jacobian1(self, q: float) -> np.ndarray:
         if self.u is None:
             raise self._not_fitted()
+        q = self._scalar_motion(q)
         return (-self.radius * math.sin(q)) * self.u + (self.radius * math.cos(q)) * self.v
 
     def configuration(self, dim=3):
@@ -458,7 +585,7 @@ class PlanarModel(PointModel):
     def motion(self, X):
         if self.origin is None or self.normal is None:
             raise self._not_fitted()
-        d = np.asarray(X) - self.origin
+        d = self._points_input(X, len(self.origin)) - self.origin
         return np.column_stack([d @ self.u, d @ self.v])
 
     def predict(self, q):
@@ -470,6 +597,7 @@ class PlanarModel(PointModel):
     def jacobian(self, q):
         if self.origin is None or self.normal is None:
             raise self._not_fitted()
+        self._one_motion(q)
         return np.column_stack([self.u, self.v])
 
     def configuration(self, dim=3):

@@ -77,6 +77,9 @@ _FQ_CACHE: dict = {}
 MAX_ORDER = 8
 #: least and largest step between two samples' time stamps (their powers enter the motion model)
 MIN_STEP, MAX_STEP = 1e-12, 1e12
+#: least and largest noise level, acceleration and hinge radius (data units): their squares and
+#: reciprocals must stay normal floats (a noise of 1e-160 squared is 0, one of 1e200 overflows)
+MIN_SCALE, MAX_SCALE = 1e-100, 1e100
 
 
 def _median_rows(A: np.ndarray) -> np.ndarray:
@@ -460,6 +463,11 @@ class OnlineEstimator:
     range of a revolute joint's radius (data units; 5 cm - 1 m, the hinges of furniture and hand
     tools), see :meth:`_curvature_occam`; ``hold``: a decision stands until another model is decided.
     ``T`` was chosen by leave-one-mechanism-out (benchmarks/articulation_choice.py).
+
+    ``noise`` lies in ``[MIN_SCALE, MAX_SCALE]``, ``noise_floor`` and ``accel`` in ``[0, MAX_SCALE]``,
+    both ends of ``radius_range`` in ``[MIN_SCALE, MAX_SCALE]`` (1e-100 to 1e100); with ``dim=2``
+    observations lie in ``z = 0``. Scores that still overflow (a noise far below the data's scale)
+    raise an :class:`InputError` instead of giving undefined probabilities.
     """
 
     def __init__(
@@ -492,12 +500,18 @@ class OnlineEstimator:
         if dim not in (2, 3) or isinstance(dim, bool):
             raise InputError(f"dim must be 2 or 3, got {dim!r}")
         if noise is not None:
-            check_range("noise", noise, 0.0, math.inf, lo_open=True, hi_open=True)
-        check_range("noise_floor", noise_floor, 0.0, math.inf, hi_open=True)
+            check_range("noise", noise, MIN_SCALE, MAX_SCALE)
+        check_range("noise_floor", noise_floor, 0.0, MAX_SCALE)
         if accel is not None:
-            check_range("accel", accel, 0.0, math.inf, hi_open=True)
+            check_range("accel", accel, 0.0, MAX_SCALE)
         if nu is not None:
             check_range("nu", nu, 0.0, 1e6, lo_open=True)
+        try:
+            lo, hi = radius_range
+        except (TypeError, ValueError):
+            raise InputError(f"radius_range must be (low, high), two numbers with 0 < low < high, got {radius_range!r}") from None
+        check_range("radius_range's low end", lo, MIN_SCALE, MAX_SCALE)
+        check_range("radius_range's high end", hi, lo, MAX_SCALE, lo_open=True)
         self.names = list(models)
         self.threshold = threshold
         self.min_samples = min_samples
@@ -537,9 +551,7 @@ class OnlineEstimator:
         self._charge = np.array([make_model("prismatic" if n == "revolute" else n, dim).n_params[dim]
                                  + (noise is None) + (accel is None and n != "static") for n in self.names], dtype=float)
         self._occam = np.zeros(len(self.names))
-        if not 0.0 < radius_range[0] < radius_range[1] < math.inf:
-            raise InputError("radius_range must be (low, high) with 0 < low < high")
-        self.radius_range = (float(radius_range[0]), float(radius_range[1]))
+        self.radius_range = (float(lo), float(hi))
 
     # -- helpers
     @property
@@ -593,6 +605,10 @@ class OnlineEstimator:
         m = max(sc)
         p = [math.exp(v - m) for v in sc]
         tot = sum(p)
+        if not tot >= 1.0:  # NaN: a score is NaN, or the best is infinite (the exponent of the best is 1)
+            raise InputError(f"Algorithm 1's model scores are not finite at sample {self._n - 1} ({dict(zip(self.names, sc))}): "
+                             f"the noise (noise={self.noise}, noise_floor={self.noise_floor}, accel={self.accel}) "
+                             "is out of scale with the data; give them in the data's units")
         return [v / tot for v in p]
 
     @property
@@ -729,6 +745,8 @@ class OnlineEstimator:
             self.filters = [_ModelFilter(make_model(n, self.dim), self.order, self.nu, self.dim) for n in self.names]
             for f in self.filters:
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
+                # a circle through points on a line (or at one point) is scored, and loses, not refused
+                f.model.require_circle = False
         for f in self.filters:
             self._fit_model(f, X, floor)
         # the motion's process noise is the same for every model (the point's acceleration); the
@@ -760,6 +778,8 @@ class OnlineEstimator:
             raise InputError(f"an observation must be a 2-D or 3-D point, got {z.shape[0]} values")
         if not (abs(z[0]) <= MAX_COORD and abs(z[1]) <= MAX_COORD and abs(z[2]) <= MAX_COORD):
             raise InputError(f"an observation must be finite coordinates of magnitude at most {MAX_COORD:g}, got {z.tolist()}")
+        if self.dim == 2 and z[2] != 0.0:
+            raise InputError(f"with dim=2 an observation is a 2-D point (or one with z = 0), got z = {z[2]:g}")
         k = self._n
         if t is None:
             t = float(k)
@@ -862,6 +882,9 @@ def estimate_online(X, t=None, **kwargs) -> OnlineResult:
         t = float_array(t, "time stamps")
         if t.shape != (len(X3),):
             raise InputError(f"t must hold one time stamp per sample ({len(X3)}), got shape {t.shape}")
+    given = kwargs.get("dim", dim)
+    if not isinstance(given, bool) and given in (2, 3) and given != dim:
+        raise InputError(f"dim={given!r} but the points have {dim} columns: give (n, {given}) points or dim={dim}")
     kwargs.setdefault("dim", dim)
     est = OnlineEstimator(**kwargs)
     for k in range(len(X3)):

@@ -196,10 +196,30 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
     ``angular_noise`` (radians) is given. Tolerances are 5 x those levels (the largest of a few
     hundred Gaussian deviations stays below 4 sigma). ``centre``: the body's centroid in the first
     frame (angular noise moves a point at distance ``d`` from it by ``d`` times the angular noise).
+    ``R``: ``(F, 3, 3)`` rotation matrices, ``t``: ``(F, 3)`` translations, finite, ``F >= 1``;
+    ``noise``, ``size`` and ``angular_noise``: positive.
     """
-    centre = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
-    R = np.asarray(R, dtype=float)
-    t = np.asarray(t, dtype=float)
+    _check_noise_size(noise, size)
+    if angular_noise is not None:
+        check_range("angular_noise", angular_noise, 0.0, math.inf, lo_open=True, hi_open=True)
+    R = float_array(R, "R")
+    t = float_array(t, "t")
+    if R.ndim != 3 or R.shape[1:] != (3, 3):
+        raise InputError(f"R must be an (F, 3, 3) array of rotation matrices, got shape {R.shape}")
+    if len(R) < 1:
+        raise InputError("R must hold at least one rotation, got none")
+    if t.shape != (len(R), 3):
+        raise InputError(f"t must be an (F, 3) array, one translation per rotation (F = {len(R)}), got shape {t.shape}")
+    if not np.all(np.isfinite(R)):
+        raise InputError("R contains NaN or infinite values")
+    if not np.all(np.isfinite(t)):
+        raise InputError("t contains NaN or infinite values")
+    if centre is None:
+        centre = np.zeros(3)
+    else:
+        centre = float_array(centre, "centre")
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+            raise InputError(f"centre must be 3 finite numbers (the body's centroid), got {centre.tolist()!r}")
     F = len(R)
     ang_tol = 5.0 * (noise / max(size, noise) if angular_noise is None else angular_noise)
     lin_tol = 5.0 * noise
@@ -217,6 +237,8 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
         if off < lin_tol:
             return RigidResult("prismatic", {"direction": d.tolist()}, (t @ d)[:, None], R, t, res)
         # translation in a plane, no rotation: plane constrained
+        if len(Vt) < 3:  # fewer than 3 frames: the full basis has the plane's normal
+            Vt = np.linalg.svd(t)[2]
         n = Vt[2]
         res["plane_residual"] = float(np.abs(t @ n).max())
         if res["plane_residual"] < lin_tol:
@@ -263,6 +285,36 @@ def _check_noise_size(noise, size=None) -> None:
         check_range("size", size, 0.0, math.inf, lo_open=True, hi_open=True)
 
 
+#: how far from 1 a unit quaternion's norm may be (as :func:`~artmotion.geometry.rotations.quat_to_matrix`)
+QUAT_TOL = 1e-3
+
+
+def check_poses(positions, quats, min_poses: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """``positions`` ``(F, 3)`` and unit quaternions ``(F, 4)`` as float arrays, checked (shapes,
+    as many rows, at least ``min_poses``, finite positions of magnitude at most ``MAX_COORD``, unit
+    quaternions); else an :class:`InputError` naming what is wrong."""
+    t = float_array(positions, "positions")
+    quats = float_array(quats, "quaternions")
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise InputError(f"positions must be an (F, 3) array, got shape {t.shape}")
+    if quats.ndim != 2 or quats.shape[1] != 4:
+        raise InputError(f"quaternions must be an (F, 4) array (x, y, z, w), got shape {quats.shape}")
+    if len(t) != len(quats):
+        raise InputError(f"positions and quaternions must have as many rows, got {len(t)} and {len(quats)}")
+    if len(t) < min_poses:
+        raise InputError(f"a pose track needs at least {min_poses} poses, got {len(t)}")
+    if not np.all(np.isfinite(t)):
+        raise InputError("positions contain NaN or infinite values")
+    if t.size and float(np.abs(t).max()) > MAX_COORD:
+        raise InputError(f"positions must be coordinates of magnitude at most {MAX_COORD:g}")
+    norms = np.linalg.norm(quats, axis=1)
+    bad = np.flatnonzero(~(np.abs(norms - 1.0) <= QUAT_TOL))     # (NaN norms too)
+    if bad.size:
+        raise InputError(f"quaternions must be unit quaternions (x, y, z, w; norm 1 within {QUAT_TOL:g}): "
+                         f"row {bad[0] + 1} has norm {norms[bad[0]]:.4g}")
+    return t, quats
+
+
 def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "auto") -> RigidResult:
     """Factorise ``(F, N, 3)`` point tracks of one body and classify its motion."""
     _check_noise_size(noise)
@@ -306,21 +358,11 @@ def classify_poses(positions: np.ndarray, quats: np.ndarray, noise: float | None
     ``noise=None``: the positional and angular noise estimated from the track (:func:`pose_noise`),
     ``angular_noise`` (radians) taking the place of ``noise / size`` when given."""
     if noise is not None:
-        _check_noise_size(noise, size)
-    t = float_array(positions, "positions")
-    quats = float_array(quats, "quaternions")
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise InputError(f"positions must be an (F, 3) array, got shape {t.shape}")
-    if quats.ndim != 2 or quats.shape[1] != 4:
-        raise InputError(f"quaternions must be an (F, 4) array (x, y, z, w), got shape {quats.shape}")
-    if len(t) != len(quats):
-        raise InputError(f"positions and quaternions must have as many rows, got {len(t)} and {len(quats)}")
-    if len(t) < 2:
-        raise InputError(f"a pose track needs at least 2 poses, got {len(t)}")
-    if not np.all(np.isfinite(t)):
-        raise InputError("positions contain NaN or infinite values")
-    if float(np.abs(t).max()) > MAX_COORD:
-        raise InputError(f"positions must be coordinates of magnitude at most {MAX_COORD:g}")
+        _check_noise_size(noise)
+    check_range("size", size, 0.0, math.inf, lo_open=True, hi_open=True)
+    if angular_noise is not None:
+        check_range("angular_noise", angular_noise, 0.0, math.inf, lo_open=True, hi_open=True)
+    t, quats = check_poses(positions, quats)
     if noise is None:
         noise, angular_noise = pose_noise(t, quats)
     R = quat_to_matrix(quats)

@@ -19,6 +19,7 @@ for another one gives a confident wrong answer). Values must be finite, coordina
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 import re
@@ -26,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from artmotion.articulation.online import MAX_STEP, MIN_STEP
-from artmotion.errors import InputError
+from artmotion.articulation.online import MAX_SCALE, MAX_STEP, MIN_STEP, OnlineEstimator
+from artmotion.errors import InputError, check_range
 from artmotion.geometry.rotations import axis_angle_to_matrix
 from artmotion.io.files import number, read_text
 
@@ -200,11 +201,16 @@ def fit_poses(positions, quats, time=None, noise: float | None = None, min_sampl
     """Rigid-body classification (4.3.2) of a 6-D pose track, re-run on growing prefixes to tell when
     the answer settled (``decided_at``: first sample from which every later prefix agrees).
     ``noise``: the positional noise std (data units); ``None``: estimated from the whole track with
-    the angular noise (:func:`~artmotion.articulation.rigid.pose_noise`), at least ``noise_floor``."""
-    from artmotion.articulation.rigid import classify_poses, pose_noise
+    the angular noise (:func:`~artmotion.articulation.rigid.pose_noise`), at least ``noise_floor``.
+    ``min_samples``: a whole number >= 2 (a shorter track is undecided); ``horizon``: predicted samples."""
+    from artmotion.articulation.rigid import _check_noise_size, check_poses, classify_poses, pose_noise
 
-    P = np.asarray(positions, dtype=float)
-    Q = np.asarray(quats, dtype=float)
+    min_samples = check_range("min_samples", min_samples, 2, 10**9, integer=True)
+    horizon = check_range("horizon", horizon, 0, 10**6, integer=True)
+    check_range("noise_floor", noise_floor, 0.0, MAX_SCALE)
+    if noise is not None:
+        _check_noise_size(noise)
+    P, Q = check_poses(positions, quats, min_poses=0)
     n = len(P)
     angular = None
     if noise is None and n >= 2:
@@ -245,7 +251,19 @@ def fit_poses(positions, quats, time=None, noise: float | None = None, min_sampl
 
 
 def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_samples: int = 7, **kwargs) -> dict:
-    """Read ``path`` and fit it (points: Algorithm 1; poses: rigid-body classification)."""
+    """Read ``path`` and fit it (points: Algorithm 1; poses: rigid-body classification).
+
+    ``threshold``, ``min_samples`` and ``kwargs`` are the options of
+    :class:`~artmotion.articulation.online.OnlineEstimator`, checked as it checks them whatever the
+    file holds (an unknown keyword is a TypeError, a value out of range an InputError). A pose track
+    uses ``min_samples``, ``noise`` and ``noise_floor``; the others apply to point tracks alone and
+    are ignored for it (as ``artmotion articulation fit`` says)."""
+    known = set(inspect.signature(OnlineEstimator).parameters) - {"threshold", "min_samples"}
+    unknown = sorted(set(kwargs) - known)
+    if unknown:
+        raise TypeError(f"fit_trajectory() got an unexpected keyword argument {unknown[0]!r} "
+                        f"(options: threshold, min_samples, {', '.join(sorted(known))})")
+    OnlineEstimator(threshold=threshold, min_samples=min_samples, **kwargs)  # checks the options
     traj = read_trajectory(path, time=time)
     if traj.quats is not None:
         out = fit_poses(traj.points, traj.quats, traj.time, noise=kwargs.get("noise"), min_samples=min_samples,

@@ -1,0 +1,319 @@
+"""Input checks of the articulation Python API (rigid, models, online, trajectory): bad input raises
+an InputError naming the parameter and what was got, never a confident answer or a crash deep inside."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from artmotion.articulation import (
+    OnlineEstimator,
+    PlanarModel,
+    PrismaticModel,
+    RevoluteModel,
+    StaticModel,
+    classify_motion,
+    classify_poses,
+    estimate_online,
+    fit_circle_2d,
+    fit_circle_joint,
+    fit_trajectory,
+)
+from artmotion.articulation.trajectory import fit_poses
+from artmotion.errors import InputError
+
+F = 10
+ROTATIONS = Rotation.from_rotvec(np.outer(np.linspace(0, 1, F), [0, 0, 1])).as_matrix()
+QUATS = Rotation.from_matrix(ROTATIONS).as_quat()
+POSITIONS = np.tile([0.5, 0.0, 0.0], (F, 1))
+
+
+def _arc3(n=40, seed=0):
+    rng = np.random.default_rng(seed)
+    th = np.linspace(0, 1.5, n)
+    return np.column_stack([0.3 * np.cos(th), 0.3 * np.sin(th), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
+
+
+# -- 1. classify_motion / classify_poses: garbage is refused, not called rigid
+
+
+def test_classify_motion_still_classifies_valid_motion():
+    assert classify_motion(ROTATIONS, np.zeros((F, 3))).model == "revolute"
+    assert classify_poses(POSITIONS, QUATS).model == "revolute"
+    assert classify_poses(POSITIONS, QUATS, noise=None).model == "revolute"
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"t": np.full((F, 3), np.nan)}, "t contains NaN"),
+    ({"t": np.zeros((3, 3))}, r"t must be an \(F, 3\) array.*got shape \(3, 3\)"),
+    ({"t": np.zeros((F, 2))}, r"t must be an \(F, 3\) array"),
+    ({"R": np.full((F, 3, 3), np.inf)}, "R contains NaN"),
+    ({"R": np.zeros((F, 3))}, r"R must be an \(F, 3, 3\) array"),
+    ({"R": np.zeros((0, 3, 3)), "t": np.zeros((0, 3))}, "at least one"),
+    ({"R": "rotations"}, "R must be an array of numbers"),
+    ({"noise": -1}, r"noise must be a number in \(0, inf\), got -1"),
+    ({"noise": 0, "size": 0}, "noise must be"),
+    ({"noise": float("nan")}, "noise must be"),
+    ({"size": 0}, "size must be"),
+    ({"angular_noise": -1}, "angular_noise must be"),
+    ({"angular_noise": float("nan")}, "angular_noise must be"),
+    ({"centre": [0, 0]}, "centre must be"),
+])
+def test_classify_motion_refuses_bad_input(kwargs, match):
+    args = {"R": ROTATIONS, "t": np.zeros((F, 3)), **kwargs}
+    with pytest.raises(InputError, match=match):
+        classify_motion(**args)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"angular_noise": -1}, "angular_noise must be"),
+    ({"angular_noise": float("nan")}, "angular_noise must be"),
+    ({"noise": -1}, "noise must be"),
+    ({"size": -1, "noise": None}, "size must be"),
+    ({"positions": np.full((F, 3), np.nan)}, "positions contain NaN"),
+    ({"quats": np.zeros((F, 4)), "noise": None}, r"quaternions must be unit quaternions.*norm 0"),
+    ({"quats": np.zeros((F, 4))}, "quaternions must be unit quaternions"),
+    ({"quats": np.full((F, 4), np.nan), "noise": None}, "quaternions must be unit quaternions"),
+])
+def test_classify_poses_refuses_bad_input(kwargs, match):
+    args = {"positions": POSITIONS, "quats": QUATS, **kwargs}
+    with pytest.raises(InputError, match=match):
+        classify_poses(**args)
+
+
+# -- 2. circle fits
+
+
+def test_circle_fits_on_valid_points_unchanged():
+    th = np.linspace(0, 2, 30)
+    P = np.array([2.0, 2.0]) + np.column_stack([np.cos(th), np.sin(th)])
+    c, r = fit_circle_2d(P)
+    assert np.allclose(c, [2, 2]) and abs(r - 1) < 1e-9
+    c, r = fit_circle_2d(P[:3])  # three points span a circle
+    assert np.allclose(c, [2, 2]) and abs(r - 1) < 1e-9
+
+
+@pytest.mark.parametrize("P, match", [
+    (np.column_stack([np.cos(np.linspace(0, 1.5, 8)), np.zeros(8), np.sin(np.linspace(0, 1.5, 8))]),
+     r"P must be an \(n, 2\) array.*got shape \(8, 3\)"),
+    ([[1.0, 2.0]], "at least 3 points"),
+    (np.ones((5, 2)), "one line"),
+    (np.column_stack([np.arange(5.0), 2 * np.arange(5.0) + 1]), "one line"),
+    (np.zeros((0, 2)), "at least 3 points"),
+    ([[0, 0], [1, np.nan], [2, 2]], "NaN"),
+    ([[0, 0], [1, 1e200], [2, 2]], "magnitude"),
+    ("points", "array of numbers"),
+])
+def test_fit_circle_2d_refuses_bad_points(P, match, capfd):
+    with pytest.raises(InputError, match=match):
+        fit_circle_2d(P)
+    assert capfd.readouterr().err == ""  # no LAPACK complaints on stderr
+
+
+def test_fit_circle_2d_refuses_bad_weights_and_init():
+    P = np.column_stack([np.cos(np.linspace(0, 2, 6)), np.sin(np.linspace(0, 2, 6))])
+    with pytest.raises(InputError, match="weights"):
+        fit_circle_2d(P, weights=np.ones(5))
+    with pytest.raises(InputError, match="weights"):
+        fit_circle_2d(P, weights=-np.ones(6))
+    with pytest.raises(InputError, match="at least 3 points, got 2 points of positive weight"):
+        fit_circle_2d(P, weights=[1, 1, 0, 0, 0, 0])  # two points left: no circle
+    with pytest.raises(InputError, match="init"):
+        fit_circle_2d(P, init=(np.zeros(3), 1.0))
+    with pytest.raises(InputError, match="init"):
+        fit_circle_2d(P, init="ab")
+
+
+@pytest.mark.parametrize("t, P, match", [
+    (np.arange(8.0), np.column_stack([np.cos(np.linspace(0, 1.5, 8)), np.zeros(8), np.sin(np.linspace(0, 1.5, 8))]),
+     r"P must be an \(n, 2\) array.*got shape \(8, 3\)"),
+    ([], np.zeros((0, 2)), "at least 3 points"),
+    ([0, 1, 2], np.column_stack([np.cos([0, 1, 2, 3]), np.sin([0, 1, 2, 3])]), r"t must hold one time per point \(4\)"),
+    ([0, 1, np.nan], np.column_stack([np.cos([0, 1, 2]), np.sin([0, 1, 2])]), "t contains NaN"),
+    (np.arange(5.0), np.ones((5, 2)), "one line"),
+])
+def test_fit_circle_joint_refuses_bad_input(t, P, match, capfd):
+    with pytest.raises(InputError, match=match):
+        fit_circle_joint(t, P)
+    assert capfd.readouterr().err == ""
+
+
+def test_fit_circle_joint_refuses_bad_start():
+    t = np.arange(5.0)
+    P = np.column_stack([np.cos(0.2 * t), np.sin(0.2 * t)])
+    for kw in ({"theta0": float("nan")}, {"omega": "fast"}):
+        with pytest.raises(InputError, match=next(iter(kw))):
+            fit_circle_joint(t, P, **kw)
+
+
+# -- 3. fitted point models
+
+
+@pytest.fixture
+def fitted():
+    X = _arc3()
+    return {"X": X, "static": StaticModel().fit(X), "prismatic": PrismaticModel().fit(X),
+            "revolute": RevoluteModel().fit(X), "planar": PlanarModel().fit(X)}
+
+
+@pytest.mark.parametrize("name", ["static", "prismatic", "revolute", "planar"])
+def test_models_refuse_bad_points(fitted, name):
+    m = fitted[name]
+    for method in (m.motion, m.residuals):
+        with pytest.raises(InputError, match="NaN"):
+            method([[np.nan, 0.0, 0.0]])
+        with pytest.raises(InputError, match=r"\(n, 3\) array.*got shape \(40, 2\)"):
+            method(fitted["X"][:, :2])
+        with pytest.raises(InputError, match="array of numbers"):
+            method("points")
+
+
+@pytest.mark.parametrize("name", ["static", "prismatic", "revolute", "planar"])
+def test_models_refuse_bad_motion_variables(fitted, name):
+    m = fitted[name]
+    with pytest.raises(InputError, match=rf"motion variables must be an \(n, {m.dof}\) array.*got shape \(3, 5\)"):
+        m.predict(np.zeros((3, 5)))
+    with pytest.raises(InputError, match="jacobian|motion variable"):
+        m.jacobian(np.zeros(m.dof + 1))
+    if m.dof:
+        with pytest.raises(InputError, match="finite"):
+            m.predict(np.full((2, m.dof), np.nan))
+        with pytest.raises(InputError, match="jacobian"):
+            m.jacobian([])
+        with pytest.raises(InputError, match="jacobian"):
+            m.jacobian([np.nan] * m.dof)
+
+
+def test_models_still_take_valid_motion_variables(fitted):
+    m = fitted["revolute"]
+    q = m.motion(fitted["X"])
+    assert m.predict(q).shape == (40, 3)
+    assert np.array_equal(m.predict(q[:, 0]), m.predict(q))  # n values for one motion variable
+    assert m.predict(0.3).shape == (1, 3)
+    assert m.jacobian(0.3).shape == (3, 1)
+    p = fitted["planar"]
+    assert p.predict([0.1, 0.2]).shape == (1, 3)  # one point's two motion variables
+    s = fitted["static"]
+    assert s.predict(s.motion(fitted["X"])).shape == (40, 3)
+
+
+@pytest.mark.parametrize("X", [np.ones((6, 3)), np.c_[np.arange(5.0), np.zeros(5), np.zeros(5)]])
+def test_revolute_fit_refuses_points_that_span_no_circle(X):
+    with pytest.raises(InputError, match="do not span a circle"):
+        RevoluteModel().fit(X)
+
+
+# -- 4. Algorithm 1
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"noise": 1e-160}, r"noise must be a number in \[1e-100, 1e\+100\], got 1e-160"),
+    ({"noise": 1e154}, "noise must be"),
+    ({"noise": 1e200}, "noise must be"),
+    ({"accel": 1e200}, "accel must be"),
+    ({"noise_floor": 1e200}, "noise_floor must be"),
+    ({"radius_range": (1,)}, "radius_range must be"),
+    ({"radius_range": "ab"}, "radius_range"),
+    ({"radius_range": (2.0, 1.0)}, "radius_range"),
+    ({"radius_range": (0.0, 1.0)}, "radius_range"),
+    ({"radius_range": (0.1, math.inf)}, "radius_range"),
+    ({"radius_range": None}, "radius_range"),
+])
+def test_online_refuses_bad_parameters(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        OnlineEstimator(**kwargs)
+    with pytest.raises(InputError, match=match):
+        estimate_online(_arc3(), **kwargs)
+
+
+@pytest.mark.filterwarnings("ignore:overflow:RuntimeWarning")  # the overflow the test provokes
+def test_online_never_decides_on_undefined_probabilities():
+    """Scores that overflow (a noise far below the data's scale) are an error, not NaN probabilities
+    and a decision."""
+    X = np.random.default_rng(0).normal(0, 1e90, (20, 3))
+    with pytest.raises(InputError, match="not finite.*noise=1e-100"):
+        estimate_online(X, noise=1e-100)
+
+
+def test_online_points_must_match_dim():
+    th = np.linspace(0, 1.5, 40)
+    V = np.column_stack([0.3 * np.cos(th), np.zeros(40), 0.3 * np.sin(th)])
+    assert estimate_online(V).model == "revolute"
+    with pytest.raises(InputError, match=r"dim=2.*3 columns"):
+        estimate_online(V, dim=2)
+    with pytest.raises(InputError, match=r"dim=3.*2 columns"):
+        estimate_online(V[:, :2], dim=3)
+    est = OnlineEstimator(dim=2)
+    est.update([1.0, 2.0])
+    est.update([1.0, 2.0, 0.0])  # a 2-D point written in 3-D
+    with pytest.raises(InputError, match="dim=2.*z = 0.5"):
+        est.update([1.0, 2.0, 0.5])
+
+
+def test_online_extreme_but_valid_parameters_still_run():
+    res = estimate_online(_arc3(), noise=1e-3, accel=1e3, noise_floor=1e-100, radius_range=(1e-100, 1e100))
+    assert all(math.isfinite(p) for p in res.probabilities.values())
+
+
+# -- 5. fit_trajectory on a pose file
+
+
+@pytest.fixture
+def pose_file(tmp_path):
+    n = 20
+    R = Rotation.from_rotvec(np.outer(np.linspace(0, 1, n), [0, 0, 1]))
+    pos = R.apply([0.5, 0.0, 0.0])
+    p = tmp_path / "pose.txt"
+    np.savetxt(p, np.column_stack([pos, R.as_quat()]))
+    return p
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"threshold": 5}, r"threshold must be a number in \(0, 1\), got 5"),
+    ({"min_samples": 0}, "min_samples must be a whole number"),
+    ({"min_samples": 2.5}, "min_samples must be a whole number"),
+    ({"order": 0}, "order must be"),
+    ({"radius_range": (1,)}, "radius_range must be"),
+    ({"noise_floor": -1}, "noise_floor must be"),
+    ({"noise": 0}, "noise must be"),
+])
+def test_fit_trajectory_pose_refuses_what_the_point_path_refuses(pose_file, kwargs, match):
+    with pytest.raises(InputError, match=match):
+        fit_trajectory(pose_file, **kwargs)
+
+
+def test_fit_trajectory_refuses_unknown_keywords(pose_file, tmp_path):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'foo'"):
+        fit_trajectory(pose_file, foo=1)
+    pts = tmp_path / "arc.txt"
+    np.savetxt(pts, _arc3())
+    with pytest.raises(TypeError, match="unexpected keyword argument 'foo'"):
+        fit_trajectory(pts, foo=1)
+
+
+def test_fit_trajectory_pose_ignores_algorithm_1_options(pose_file):
+    """Options of Algorithm 1 that are in range do not apply to a pose track (as the CLI says)."""
+    base = fit_trajectory(pose_file)
+    assert base["model"] == "revolute"
+    assert fit_trajectory(pose_file, threshold=0.9, order=3, radius_range=(0.1, 2.0)) == base
+
+
+def test_fit_poses_checks_its_parameters():
+    with pytest.raises(InputError, match="min_samples must be a whole number"):
+        fit_poses(POSITIONS, QUATS, min_samples=2.5)
+    with pytest.raises(InputError, match="min_samples must be"):
+        fit_poses(POSITIONS, QUATS, min_samples=0)
+    with pytest.raises(InputError, match="horizon must be"):
+        fit_poses(POSITIONS, QUATS, horizon=-1)
+    with pytest.raises(InputError, match="noise_floor must be"):
+        fit_poses(POSITIONS, QUATS, noise_floor=float("nan"))
+    with pytest.raises(InputError, match="quaternions must be unit quaternions"):
+        fit_poses(POSITIONS, np.zeros((F, 4)))
+    assert fit_poses(POSITIONS, QUATS, min_samples=2)["model"] == "revolute"
+
+
+def test_classify_motion_two_frames_in_a_plane():
+    """Two translations off one line span a plane: planar, not an IndexError (the reduced SVD of 2
+    frames has no third direction)."""
+    assert classify_motion(np.stack([np.eye(3)] * 2), [[0.1, 0.0, 0.0], [0.0, 0.1, 0.0]]).model == "planar"

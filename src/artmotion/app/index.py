@@ -115,7 +115,10 @@ def parse_query(text: str) -> Query:
     """Parse ``"person 3 exits left at frame 40"`` into subject, track id, verb, direction and
     frame. A number after ``frame`` is a frame (the moment must span it), one before ``people`` a
     count (ignored), any other the track id (a leading minus kept: ids may be negative). (A number
-    was always a track id: "who enters at frame 21" looked for track 21 and found nothing.)"""
+    was always a track id: "who enters at frame 21" looked for track 21 and found nothing.)
+    ``text`` that is not a string is an :class:`InputError`."""
+    if not isinstance(text, str):
+        raise InputError(f"a query must be text, got {type(text).__name__}")
     q = Query(text=text)
     text = text.lower()
     phrase = next((verb for said, verb in PHRASES.items() if said in text), None)

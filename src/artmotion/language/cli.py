@@ -55,6 +55,8 @@ def describe_cmd(
     for name, angle in (("--open-above", open_above), ("--close-below", close_below)):
         if angle is not None:
             check_range(name, angle, -MAX_ANGLE, MAX_ANGLE)
+    if pose is not None and open_above is not None and close_below is not None and close_below > open_above:
+        raise InputError(f"--close-below {close_below:g} is above --open-above {open_above:g}")
     if pose_track is not None:
         check_range("--pose-track", pose_track, -MAX_ID, MAX_ID, integer=True)
     rows = read_mot(results)

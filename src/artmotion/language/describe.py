@@ -24,16 +24,16 @@ import math
 import os
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.geometry import box_center
 from artmotion.io.events import EVENT_TYPES, event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
-from artmotion.io.mot import MAX_COORD, check_ids, check_mot_rows
+from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID, check_ids, check_mot_rows
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 from artmotion.language.grammar import SIDES, Triplet, join_subjects, noun_phrase, render
 
@@ -51,6 +51,23 @@ class DescribeParams:
     min_together: int = 25  # frames two tracks must be together to say so
     max_gap: int = 5  # frames of not-together tolerated inside a together run
     border: float = 0.03  # margin (fraction of the smaller image side, at least 8 px) to call a border
+
+    def checked(self, name: str = "params") -> DescribeParams:
+        """A copy with every field checked (an :class:`InputError` naming ``params.FIELD``
+        otherwise) and the frame counts made ints (a whole float such as ``5.0`` counts too):
+        ``smooth`` and ``max_gap`` whole numbers >= 0 (``smooth`` 0 or 1: no smoothing),
+        ``window``, ``min_segment`` and ``min_together`` whole numbers >= 1, the other fields
+        finite numbers >= 0 (``border`` a fraction, at most 1)."""
+        counts = {"smooth": 0, "window": 1, "min_segment": 1, "min_together": 1, "max_gap": 0}
+        values: dict[str, int] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in counts:
+                values[f.name] = check_range(f"{name}.{f.name}", v, counts[f.name], MAX_FRAME, integer=True)
+            else:
+                check_range(f"{name}.{f.name}", v, 0.0, 1.0 if f.name == "border" else math.inf,
+                            hi_open=f.name != "border")
+        return replace(self, **values)
 
 
 # --------------------------------------------------------------------------------------------
@@ -420,6 +437,36 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     return frames.astype(int), np.asarray(values), column
 
 
+def check_pose(frames, angles, what: str = "pose") -> tuple[np.ndarray, np.ndarray]:
+    """A pose sequence checked: ``frames`` (an int array) whole numbers in ``[1, MAX_FRAME]``,
+    increasing, and ``angles`` (a float array) finite, in ``[-MAX_ANGLE, MAX_ANGLE]`` degrees, one
+    per frame (both 1-D, of the same length; empty is allowed); else an :class:`InputError`
+    naming ``what`` (``pose`` of :func:`describe`)."""
+    f, a = float_array(frames, f"{what} frames"), float_array(angles, f"{what} angles")
+    if f.ndim != 1 or a.ndim != 1:
+        raise InputError(f"{what} frames and angles must be 1-D sequences, got shapes {f.shape} and {a.shape}")
+    if len(f) != len(a):
+        raise InputError(f"{what} frames and angles must be as many, one angle per frame, got {len(f)} frames "
+                         f"and {len(a)} angles")
+    if not np.all(np.isfinite(f) & (f >= 1) & (f <= MAX_FRAME) & (f == np.round(f))):
+        bad = f[~(np.isfinite(f) & (f >= 1) & (f <= MAX_FRAME) & (f == np.round(f)))][0]
+        raise InputError(f"{what} frames must be whole numbers in [1, {MAX_FRAME}], got {bad:g}")
+    if np.any(np.diff(f) <= 0):
+        i = int(np.flatnonzero(np.diff(f) <= 0)[0])
+        raise InputError(f"{what} frames must increase, got frame {f[i + 1]:g} after frame {f[i]:g}")
+    ok = np.isfinite(a) & (np.abs(a) <= MAX_ANGLE)
+    if not np.all(ok):
+        i = int(np.flatnonzero(~ok)[0])
+        raise InputError(f"{what} angles must be finite numbers in [-{MAX_ANGLE:g}, {MAX_ANGLE:g}] degrees, "
+                         f"got {a[i]:g} at frame {f[i]:g}")
+    return f.astype(np.int64), a
+
+
+def _threshold(name: str, value) -> float | None:
+    """An opening or closing angle: None, or a finite number in ``[-MAX_ANGLE, MAX_ANGLE]``."""
+    return None if value is None else float(check_range(name, value, -MAX_ANGLE, MAX_ANGLE))
+
+
 MIN_POSE_RANGE = 10.0  # degrees: a smaller spread of the opening angle is noise, not opening/closing
 
 
@@ -433,16 +480,27 @@ def pose_changes(
     ``close_below``; in between it keeps its state. Defaults: 65% and 35% of the way between the
     10th and 90th percentile of the angles, provided they lie at least ``min_range`` degrees apart
     (else the jaw held still and nothing is said). The initial state is not an event.
+
+    ``frames`` and ``angles`` are checked by :func:`check_pose` (whole increasing frames, finite
+    angles, as many of each); an empty sequence has no changes. The thresholds are None or finite
+    numbers in ``[-MAX_ANGLE, MAX_ANGLE]``, ``close_below`` not above ``open_above``, and
+    ``min_range`` a finite number >= 0; else an :class:`InputError`.
     """
-    angles = np.asarray(angles, dtype=float)
+    frames, angles = check_pose(frames, angles)
+    open_above, close_below = _threshold("open_above", open_above), _threshold("close_below", close_below)
+    check_range("min_range", min_range, 0.0, math.inf, hi_open=True)
+    if not len(angles):
+        return []
     lo, hi = np.percentile(angles, [10, 90])
+    auto_open, auto_close = open_above is None, close_below is None
     if open_above is None or close_below is None:
         if hi - lo < min_range:
             return []
         open_above = lo + 0.65 * (hi - lo) if open_above is None else open_above
         close_below = lo + 0.35 * (hi - lo) if close_below is None else close_below
     if close_below > open_above:
-        raise InputError(f"--close-below {close_below:g} is above --open-above {open_above:g}")
+        raise InputError(f"close_below {close_below:g}{' (automatic)' if auto_close else ''} is above "
+                         f"open_above {open_above:g}{' (automatic)' if auto_open else ''}")
     state, out = None, []
     for f, a in zip(frames, angles):
         new = state
@@ -465,7 +523,7 @@ def events_from_tracks(tracks: np.ndarray, size: tuple[float, float] | None = No
     """Enter and exit events of MOTChallenge ``tracks`` for a tracker that gives none: a track that
     starts after the first frame enters (by the image border its first box touches, else
     ``inside``: it appears); one that ends before the last frame exits (or vanishes)."""
-    p = params or DescribeParams()
+    p = _params(params)
     tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
     if not len(tracks):
         return []
@@ -487,6 +545,29 @@ def _track_events(table: dict, tracks: np.ndarray, size, p: DescribeParams) -> l
     return sorted(events, key=lambda e: (e["frame"], e["type"]))
 
 
+def _params(params) -> DescribeParams:
+    """``params`` (None: the defaults) checked, its counts as ints."""
+    if params is None:
+        return DescribeParams()
+    if not isinstance(params, DescribeParams):
+        raise InputError(f"params must be a DescribeParams, got {type(params).__name__}")
+    return params.checked()
+
+
+def _check_classes(classes) -> tuple[str, dict[int, str]]:
+    """``classes`` = ``(default class, {track id: class})`` checked: names text, ids whole numbers."""
+    if not (isinstance(classes, tuple) and len(classes) == 2 and isinstance(classes[1], dict)):
+        raise InputError(f"classes must be (default class, {{track id: class}}), got {classes!r}")
+    default_cls, per_track = classes
+    if not isinstance(default_cls, str):
+        raise InputError(f"classes: the default class must be text (a class name), got {default_cls!r}")
+    for tid, name in per_track.items():
+        check_range("classes: a track id", tid, -MAX_ID, MAX_ID, integer=True)
+        if not isinstance(name, str):
+            raise InputError(f"classes: the class of track {tid} must be text (a class name), got {name!r}")
+    return default_cls, per_track
+
+
 def describe(
     tracks: np.ndarray,
     events: list[dict] | None = None,
@@ -501,8 +582,15 @@ def describe(
     fps: float | None = None,
     params: DescribeParams | None = None,
 ) -> list[Triplet]:
-    """Triplets (with their sentences) for tracks, events and a pose sequence, ordered by frame."""
-    p = params or DescribeParams()
+    """Triplets (with their sentences) for tracks, events and a pose sequence, ordered by frame.
+
+    ``pose``: ``(frames, angles)`` of the opening angle, checked by :func:`check_pose` (whole
+    frames in increasing order, one finite angle each; an empty sequence says nothing about the
+    pose); ``open_above``/``close_below`` None (automatic) or finite angles (:func:`pose_changes`).
+    ``classes``: ``(default class, {track id: class})``, names as text. ``params``: a
+    :class:`DescribeParams` (checked by :meth:`DescribeParams.checked`). Bad input is an
+    :class:`InputError` naming the parameter."""
+    p = _params(params)
     tracks = check_mot_rows(tracks, "tracks")
     check_ids(tracks, "tracks", None)
     for k, ev in enumerate(events or []):       # types outside the grammar are passed over, unread
@@ -513,9 +601,18 @@ def describe(
         check_range("fps", fps, MIN_FPS, MAX_FPS)
     if image_size is not None:
         check_image_size(tracks, image_size)
-    if not (isinstance(classes, tuple) and len(classes) == 2 and isinstance(classes[1], dict)):
-        raise InputError(f"classes must be (default class, {{track id: class}}), got {classes!r}")
-    default_cls, per_track = classes
+    default_cls, per_track = _check_classes(classes)
+    if not isinstance(pose_subject, str):
+        raise InputError(f"pose_subject must be text (a class name), got {pose_subject!r}")
+    if pose_track is not None:
+        pose_track = check_range("pose_track", pose_track, -MAX_ID, MAX_ID, integer=True)
+    if pose is not None:
+        try:
+            frames, angles = pose
+        except (TypeError, ValueError):
+            raise InputError(f"pose must be a pair (frames, angles), got {type(pose).__name__}") from None
+        pose = check_pose(frames, angles)
+    open_above, close_below = _threshold("open_above", open_above), _threshold("close_below", close_below)
     cls_of = lambda tid: per_track.get(tid, default_cls)  # noqa: E731
     subj = lambda tid, cap=True: noun_phrase(cls_of(tid), tid, capital=cap)  # noqa: E731
     times = (lambda a, b: ((a - 1) / fps, (b - 1) / fps)) if fps else (lambda a, b: None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
+from artmotion.errors import InputError
 from artmotion.io.events import SIDES
 
 #: verb -> category; the grammar says nothing else.
@@ -67,7 +68,9 @@ class Triplet:
 
 
 def noun_phrase(cls: str, track: int | None, *, capital: bool) -> str:
-    """``("person", 3)`` -> ``"Person 3"`` (or ``"person 3"`` inside a sentence)."""
+    """``("person", 3)`` -> ``"Person 3"`` (or ``"person 3"`` inside a sentence); ``cls`` must be text."""
+    if not isinstance(cls, str):
+        raise InputError(f"a class name must be text, got {cls!r}")
     word = cls.strip() or "object"
     word = word[0].upper() + word[1:] if capital else word.lower()
     return word if track is None else f"{word} {track}"

@@ -10,15 +10,13 @@ calibration rows).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from artmotion.errors import InputError, check_range, float_array
 from artmotion.filters import constant_velocity
 from artmotion.io.mot import MAX_FRAME
 
-__all__ = ["ACCEL_SCALES", "PoseFilter", "accel_variance", "tune_filter"]
+__all__ = ["ACCEL_SCALES", "MAX_ACCEL_VAR", "MAX_DT", "MAX_STD", "PoseFilter", "accel_variance", "tune_filter"]
 
 
 def accel_variance(Y: np.ndarray, dt: float = 1.0, frames: np.ndarray | None = None) -> np.ndarray:
@@ -90,12 +88,34 @@ def tune_filter(Y: np.ndarray, mean: np.ndarray, std: np.ndarray, accel_var: np.
     return scale, band[0], band[1]
 
 
-def _positive(name: str, value) -> np.ndarray:
-    """``value`` as a float array of finite positive numbers, else an :class:`InputError`."""
+#: largest standard deviation of a prediction (``std``), multiplier of the returned ones
+#: (``filter_std``, ``smooth_std``) and acceleration variance (``accel_var``) the filter takes,
+#: and largest frame interval (``dt``, in frames: the longest video): within them the variances
+#: (the squares) and the covariances built from them stay finite. (The smoother itself gives a
+#: frame without a measurement a deviation of 1e12.)
+MAX_STD = 1e100
+MAX_ACCEL_VAR = 1e100
+MAX_DT = float(MAX_FRAME)
+
+
+def _positive(name: str, value, hi: float = MAX_STD) -> np.ndarray:
+    """``value`` as a float array of finite positive numbers up to ``hi``, else an :class:`InputError`."""
     a = np.atleast_1d(float_array(value, name))
-    if not (np.all(np.isfinite(a)) and np.all(a > 0.0)):
-        raise InputError(f"{name} must be finite and positive, got {a.ravel()[:8].tolist()}")
+    if not (np.all(np.isfinite(a)) and np.all(a > 0.0) and np.all(a <= hi)):
+        raise InputError(f"{name} must be finite, positive and at most {hi:g}, got {a.ravel()[:8].tolist()}")
     return a if np.ndim(value) else a.reshape(())
+
+
+def _finite(*arrays: np.ndarray) -> None:
+    """An :class:`InputError` unless every value of ``arrays`` (the filter's output) is finite:
+    the backstop for ``std``, ``dt`` and ``accel_var`` each in range but out of scale for one
+    another (the covariances overflow or turn singular)."""
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        raise InputError(_OUT_OF_SCALE)
+
+
+_OUT_OF_SCALE = ("the filter's estimates are not finite: std, dt and accel_var are too far out of scale "
+                 "for one another")
 
 
 class PoseFilter:
@@ -106,17 +126,26 @@ class PoseFilter:
     (per angle or one). ``filter(mean, std)`` runs forward over a sequence (causal, real-time)
     and returns the filtered means and standard deviations; ``step`` fuses one frame;
     ``smooth(mean, std)`` estimates every frame from the whole sequence (offline).
+
+    ``accel_var``, the multipliers and ``std`` are positive (``std`` non-negative) and at most
+    :data:`MAX_ACCEL_VAR` and :data:`MAX_STD`, ``dt`` in ``(0, MAX_DT]``, so that the variances
+    stay finite; a result that is not finite all the same (values in range but out of scale for
+    one another) is an :class:`InputError` too (``step`` then resets the filter).
     """
 
     def __init__(self, accel_var, dt: float = 1.0, filter_std=1.0, smooth_std=1.0):
-        self.accel_var = np.atleast_1d(_positive("accel_var", accel_var))
+        self.accel_var = np.atleast_1d(_positive("accel_var", accel_var, MAX_ACCEL_VAR))
         if self.accel_var.ndim != 1 or not len(self.accel_var):
             raise InputError(f"accel_var must be one variance per angle, got shape {self.accel_var.shape}")
-        self.dt = float(check_range("dt", dt, 0.0, math.inf, lo_open=True, hi_open=True))
+        self.dt = float(check_range("dt", dt, 0.0, MAX_DT, lo_open=True))
         # multipliers of the standard deviations that ``filter``/``step`` and ``smooth`` return
         # (:func:`tune_filter`: the filter's own covariance takes the errors as independent)
+        k = len(self.accel_var)
         self.filter_std = _positive("filter_std", filter_std)
         self.smooth_std = _positive("smooth_std", smooth_std)
+        for name, mult in (("filter_std", self.filter_std), ("smooth_std", self.smooth_std)):
+            if mult.ndim > 1 or mult.size not in (1, k):
+                raise InputError(f"{name} must be one multiplier or one per angle ({k}), got shape {mult.shape}")
         self.reset()
 
     def reset(self) -> None:
@@ -145,8 +174,8 @@ class PoseFilter:
             raise InputError(f"std must have the shape of the means {mean.shape}, got {std.shape}")
         if not np.all(np.isfinite(mean)):
             raise InputError("the means contain NaN or infinite values")
-        if not (np.all(np.isfinite(std)) and np.all(std >= 0.0)):
-            raise InputError("the standard deviations must be finite and non-negative")
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0.0) and np.all(std <= MAX_STD)):
+            raise InputError(f"the standard deviations must be finite, non-negative and at most {MAX_STD:g}")
         return mean, std
 
     def step(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
@@ -155,7 +184,11 @@ class PoseFilter:
         if len(z) != len(self.accel_var):
             raise InputError(f"expected {len(self.accel_var)} angles, got {len(z)}")
         mean, std = self._check(z[None, :], np.asarray(std, dtype=float).reshape(1, -1))
-        return self._step(mean[0], std[0])
+        out, sd = self._step(mean[0], std[0])
+        if not (np.all(np.isfinite(out)) and np.all(np.isfinite(sd))):
+            self.reset()
+        _finite(out, sd)
+        return out, sd
 
     def _step(self, z: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`step` on checked input."""
@@ -205,7 +238,9 @@ class PoseFilter:
 
     def filter(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         xs, Ps = self._forward(mean, std)
-        return xs[:, :, 0].copy(), np.sqrt(Ps[:, :, 0, 0]) * self.filter_std
+        out, sd = xs[:, :, 0].copy(), np.sqrt(Ps[:, :, 0, 0]) * self.filter_std
+        _finite(out, sd)
+        return out, sd
 
     def smooth(self, mean, std, frames=None) -> tuple[np.ndarray, np.ndarray]:
         """Offline: every frame's estimate from the whole sequence, past and future frames — the
@@ -233,5 +268,10 @@ class PoseFilter:
                 full_mean[at], full_std[at] = mean, std
                 out, sd = self.smooth(full_mean, full_std)
                 return out[at], sd[at]
-        out, sd = self._backward(*self._forward(mean, std))
-        return out, sd * self.smooth_std
+        try:
+            out, sd = self._backward(*self._forward(mean, std))
+        except np.linalg.LinAlgError:  # a singular predicted covariance
+            raise InputError(_OUT_OF_SCALE) from None
+        sd = sd * self.smooth_std
+        _finite(out, sd)
+        return out, sd

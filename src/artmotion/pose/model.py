@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import numbers
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -95,6 +96,16 @@ def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]
     return np.concatenate([np.flatnonzero(~held), np.flatnonzero(held)]), int(held.sum()), frames
 
 
+def _whole(value):
+    """``value`` as an int when it is a whole real number (not a bool), else as it is."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    v = float(value)
+    return int(v) if v.is_integer() else value
+
+
 class PoseRegressor:
     """Joint angles from a tool crop: HOG/LBP/learned features + one GP per angle (scikit-learn style).
 
@@ -137,10 +148,14 @@ class PoseRegressor:
         if net_mean not in NET_MEANS:
             raise InputError(f"unknown net_mean {net_mean!r}; choose {', '.join(NET_MEANS)}")
         self.feature = feature
-        self.cell = F.default_cell(feature) if cell is None else int(cell)
-        self.size = (int(size[0]), int(size[1]))
+        # whole numbers become ints; anything else is kept as given, for fit to refuse by name
+        # (``_check_params``: scikit-learn checks in ``fit``) instead of int() cutting or failing here
+        self.cell: Any = F.default_cell(feature) if cell is None else _whole(cell)
+        self.size: Any = (tuple(_whole(v) for v in size)
+                          if isinstance(size, (tuple, list, np.ndarray)) and len(size) == 2 else size)
         # the network learns its own blur (augmentation); HOG and LBP need one against sensor noise
-        self.blur = (0.0 if feature == "cnn" else 0.7) if blur is None else float(blur)
+        self.blur: Any = ((0.0 if feature == "cnn" else 0.7) if blur is None
+                          else float(blur) if isinstance(blur, numbers.Real) and not isinstance(blur, bool) else blur)
         self.net_steps = net_steps
         self.augment = augment
         self.opening_weight = opening_weight
@@ -179,12 +194,7 @@ class PoseRegressor:
                                       ("inducing", self.inducing, ("kmeans", "random")), ("net_mean", self.net_mean, NET_MEANS)):
             if choice not in choices:
                 raise InputError(f"unknown {name} {choice!r}; choose one of {', '.join(choices)}")
-        check_range("cell", self.cell, 2, 256, integer=True)
-        if not isinstance(self.size, tuple) or len(self.size) != 2:
-            raise InputError(f"size must be a (width, height) pair, got {self.size!r}")
-        for v in self.size:
-            check_range("size (crop width and height)", v, 8, 4096, integer=True)
-        check_range("blur", self.blur, 0.0, 100.0)
+        self._check_crop_params()
         # (one hyper-parameter optimisation row gives NaN hyper-parameters: n_opt at least 2)
         for name, value, lo in (("max_exact", self.max_exact, 0), ("n_inducing", self.n_inducing, 1),
                                 ("n_opt", self.n_opt, 2), ("restarts", self.restarts, 0), ("net_steps", self.net_steps, 1)):
@@ -197,8 +207,18 @@ class PoseRegressor:
         check_range("opening_weight", self.opening_weight, 0.0, 1e6)
         check_range("net_beta", self.net_beta, 0.0, 1e6)
 
+    def _check_crop_params(self) -> None:
+        """``cell``, ``size`` and ``blur``, the parameters of :meth:`features`, checked."""
+        check_range("cell", self.cell, 2, 256, integer=True)
+        if not isinstance(self.size, tuple) or len(self.size) != 2:
+            raise InputError(f"size must be a (width, height) pair, got {self.size!r}")
+        for v in self.size:
+            check_range("size (crop width and height)", v, 8, 4096, integer=True)
+        check_range("blur", self.blur, 0.0, 100.0)
+
     # -- features
     def features(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        self._check_crop_params()
         # (crop by crop: no mask as large as a whole stack of float crops; integer crops need none)
         if not (isinstance(images, np.ndarray) and images.dtype.kind not in "fc") and any(
                 np.asarray(im).dtype.kind in "fc" and not np.isfinite(im).all() for im in images):

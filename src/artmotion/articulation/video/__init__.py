@@ -103,11 +103,14 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
                   on_frame: Callable[[int, int], None] | None = None, snapshots: int = 0) -> VideoArticulation:
     """Open ``source`` (a video file or a folder of frames) and find its moving parts' joints.
     ``on_frame(done, total)`` reports progress while tracking; ``snapshots`` frames spread over
-    the video (the last one read included) are kept in the result, for :func:`parts_strip`."""
+    the video (the last one read included) are kept in the result, for :func:`parts_strip`:
+    a whole number >= 0 (0: none), at most :data:`~artmotion.io.mot.MAX_FRAME`."""
     from artmotion.articulation.video.tracks import point_tracks
+    from artmotion.io.mot import MAX_FRAME
     from artmotion.io.sequence import open_sequence
 
     _check_options(focal, max_parts, seed)
+    snapshots = check_range("snapshots", snapshots, 0, MAX_FRAME, integer=True)
     seq = open_sequence(source)
     total = len(seq)
     want = set(snapshot_frames(total, snapshots))

@@ -19,6 +19,7 @@ has unit expected squared norm whatever its size.
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -29,9 +30,11 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import lars_path_gram
 from sklearn.metrics import silhouette_score, v_measure_score
 
-from artmotion.errors import InputError, float_array
+from artmotion.errors import InputError, check_range, check_seed, float_array
 
 LAMBDA = 0.15
+#: largest number of atoms or iterations the models take
+_MAX_COUNT = 2**31 - 1
 
 
 def _features(name: str, X, dim: int | None = None) -> np.ndarray:
@@ -45,6 +48,39 @@ def _features(name: str, X, dim: int | None = None) -> np.ndarray:
     if not np.all(np.isfinite(X)):
         raise InputError(f"{name} features contain NaN or infinite values")
     return X
+
+
+def _blocks(visual, audio) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """``visual`` concepts and ``audio`` segments checked: lists (or tuples) of feature arrays,
+    as many of each (at least one), every one of finite numbers and all with the same examples
+    (rows); else an :class:`InputError` naming the block."""
+    for name, blocks, one in (("visual", visual, "concept"), ("audio", audio, "segment")):
+        if not (isinstance(blocks, (list, tuple)) or (isinstance(blocks, np.ndarray) and blocks.ndim == 3)):
+            shape = f" of shape {blocks.shape}" if isinstance(blocks, np.ndarray) else ""
+            raise InputError(f"{name} must be a list of feature arrays, one per {one}, got {type(blocks).__name__}{shape}")
+    if len(visual) != len(audio) or not len(visual):
+        raise InputError(f"need as many visual concepts as audio segments (at least one), "
+                         f"got {len(visual)} and {len(audio)}")
+    named = [(f"visual concept {i + 1}", X) for i, X in enumerate(visual)] + \
+        [(f"audio segment {j + 1}", Y) for j, Y in enumerate(audio)]
+    arrays = [_features(name, X) for name, X in named]
+    n = len(arrays[0])
+    for (name, _), X in zip(named, arrays):
+        if len(X) != n:
+            raise InputError(f"{name} has {len(X)} examples (rows) but {named[0][0]} has {n}: every concept "
+                             f"and segment must hold the same examples, row by row")
+    return arrays[: len(visual)], arrays[len(visual):]
+
+
+def _check_model_params(model) -> tuple[int, int]:
+    """The parameters of a :class:`PairedSparse` or :class:`CompositionalSparse` checked, as
+    ``fit`` needs them (scikit-learn style: a parameter may be set after the model is made);
+    ``n_atoms`` and ``max_iter`` as ints."""
+    n_atoms = check_range("n_atoms", model.n_atoms, 1, _MAX_COUNT, integer=True)
+    check_range("lam", model.lam, 0.0, math.inf, hi_open=True)
+    max_iter = check_range("max_iter", model.max_iter, 0, _MAX_COUNT, integer=True)
+    check_seed(model.seed, "seed")
+    return n_atoms, max_iter
 
 
 def _not_fitted(cls: str) -> InputError:
@@ -75,7 +111,11 @@ class PairedSparse:
         self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
 
     def fit(self, X: np.ndarray, Y: np.ndarray) -> PairedSparse:
-        """Learn from visual ``X (N, dx)`` and audio ``Y (N, dy)`` of the same ``N`` examples."""
+        """Learn from visual ``X (N, dx)`` and audio ``Y (N, dy)`` of the same ``N`` examples.
+
+        ``n_atoms`` a whole number >= 1, ``lam`` a finite number >= 0, ``max_iter`` a whole number
+        >= 0, ``seed`` NumPy's; else an :class:`InputError`."""
+        n_atoms, max_iter = _check_model_params(self)
         X, Y = _features("visual", X), _features("audio", Y)
         if len(X) != len(Y):
             raise InputError(f"visual and audio features must pair up row by row, got {len(X)} and {len(Y)} rows")
@@ -83,9 +123,9 @@ class PairedSparse:
             raise InputError("need at least two paired examples")
         self.sx_, self.sy_ = BlockScaler().fit(X), BlockScaler().fit(Y)
         Z = np.hstack([self.sx_.transform(X), self.sy_.transform(Y)])
-        k = int(min(self.n_atoms, len(X)))
+        k = int(min(n_atoms, len(X)))
         dl = DictionaryLearning(
-            n_components=k, alpha=self.lam, max_iter=self.max_iter, tol=1e-6,
+            n_components=k, alpha=self.lam, max_iter=max_iter, tol=1e-6,
             fit_algorithm="cd", transform_algorithm="lasso_lars", random_state=self.seed,
         )
         with warnings.catch_warnings():
@@ -166,9 +206,12 @@ def vmeasure_matrix(visual: list[np.ndarray], audio: list[np.ndarray], seed: int
 
 def estimate_linking(visual: list[np.ndarray], audio: list[np.ndarray], seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Linking matrix ``H`` (``H[i, j] = 1``: visual concept ``i`` is spoken in segment ``j``) and
-    the V-measure matrix it was chosen from (Hungarian assignment of maximal total V-measure)."""
-    if len(visual) != len(audio):
-        raise ValueError("as many visual concepts as audio segments are needed")
+    the V-measure matrix it was chosen from (Hungarian assignment of maximal total V-measure).
+
+    ``visual`` and ``audio``: lists of feature arrays, as many of each, all of the same examples
+    (rows) and finite; else an :class:`InputError` naming the block."""
+    visual, audio = _blocks(visual, audio)
+    check_seed(seed, "seed")
     M = vmeasure_matrix(visual, audio, seed=seed)
     rows, cols = linear_sum_assignment(-M)
     H = np.zeros_like(M, dtype=int)
@@ -183,12 +226,12 @@ class CompositionalSparse:
         self.n_atoms, self.lam, self.max_iter, self.seed = n_atoms, lam, max_iter, seed
 
     def fit(self, visual: list[np.ndarray], audio: list[np.ndarray], H: np.ndarray | None = None) -> CompositionalSparse:
-        """Learn ``H`` (unless given) and the paired model of every linked pair."""
-        if len(visual) != len(audio) or not len(visual):
-            raise InputError(f"need as many visual concepts as audio segments (at least one), "
-                             f"got {len(visual)} and {len(audio)}")
-        visual = [_features(f"visual concept {i + 1}", X) for i, X in enumerate(visual)]
-        audio = [_features(f"audio segment {j + 1}", Y) for j, Y in enumerate(audio)]
+        """Learn ``H`` (unless given) and the paired model of every linked pair.
+
+        ``visual``, ``audio``: lists of feature arrays (one per concept, one per segment), all of
+        the same examples (rows); the parameters as :meth:`PairedSparse.fit` takes them."""
+        _check_model_params(self)
+        visual, audio = _blocks(visual, audio)
         if H is None:
             H, M = estimate_linking(visual, audio, seed=self.seed)
         else:
@@ -210,6 +253,8 @@ class CompositionalSparse:
     def _check_blocks(self, blocks, what: str) -> None:
         if not hasattr(self, "models_"):
             raise _not_fitted(type(self).__name__)
+        if not (isinstance(blocks, (list, tuple)) or (isinstance(blocks, np.ndarray) and blocks.ndim == 3)):
+            raise InputError(f"expected a list of {len(self.models_)} {what} (feature arrays), got {type(blocks).__name__}")
         if len(blocks) != len(self.models_):
             raise InputError(f"expected {len(self.models_)} {what}, got {len(blocks)}")
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.articulation.slam.ekf import _wrap, control_noise, motion_model
+from artmotion.articulation.slam.ekf import MIN_RANGE, _wrap, control_noise, motion_model
 from artmotion.errors import InputError, check_range, check_seed
 
 
@@ -204,7 +204,9 @@ def _simulate(world: World, steps: int, cfg: SimConfig | None, rng, radius: floa
         vis = np.flatnonzero((rng_ < cfg.max_range) & (np.abs(brg) < cfg.fov / 2))
         if cfg.max_seen is not None and len(vis) > cfg.max_seen:
             vis = np.sort(vis[np.argsort(rng_[vis], kind="stable")[: cfg.max_seen]])
-        z = np.column_stack([rng_[vis] + rng.normal(0, cfg.range_std, len(vis)),
+        # a range is a distance: the noise of a landmark closer than it (a door swinging past the
+        # robot) folds back to positive (the filters refuse a negative or zero range)
+        z = np.column_stack([np.maximum(np.abs(rng_[vis] + rng.normal(0, cfg.range_std, len(vis))), MIN_RANGE),
                              _wrap(brg[vis] + rng.normal(0, cfg.bearing_std, len(vis)))])
         obs.append((vis, z))
         poses.append(x.copy())

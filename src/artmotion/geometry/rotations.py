@@ -33,6 +33,9 @@ def _rotations(R, name: str, tol: float, stack: bool = True) -> np.ndarray:
     is not orthonormal (``R Rᵀ`` differs from the identity by more than ``tol`` in an entry, the
     style of :func:`quat_to_matrix`'s ``tol``) or is a reflection (determinant -1)."""
     R = float_array(R, name)
+    if not stack and R.ndim > 2:
+        raise InputError(f"{name}: one 3x3 matrix, got a stack of shape {R.shape} "
+                         "(matrix_to_quat and rotation_angle take stacks)")
     if R.ndim < 2 or R.shape[-2:] != (3, 3) or (not stack and R.ndim != 2):
         raise InputError(f"{name} must be a 3x3 rotation matrix{' or a stack of them (..., 3, 3)' if stack else ''}, "
                          f"got shape {R.shape}")
@@ -61,6 +64,12 @@ def matrix_to_quat(R, *, tol: float = 1e-3) -> np.ndarray:
     return _rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
 
 
+def _no_direction(name: str, x: np.ndarray, norm: float, got) -> InputError:
+    """The error for a vector ``x`` (of length ``norm``) that cannot be normalised."""
+    return InputError(f"{name} must be a non-zero vector (a zero vector has no direction), got {got}" if not np.any(x)
+                      else f"{name} is too {'short' if norm == 0.0 else 'long'} to normalise, got {got}")
+
+
 def _unit_axis(axis) -> np.ndarray:
     """``axis`` (a finite, non-zero 3-vector) divided by its length, else an :class:`InputError`."""
     axis = float_array(axis, "axis")
@@ -70,8 +79,7 @@ def _unit_axis(axis) -> np.ndarray:
         raise InputError(f"axis contains NaN or infinite values, got {axis.tolist()}")
     norm = np.linalg.norm(axis)
     if not 0.0 < norm < np.inf:
-        raise InputError(f"axis must be a non-zero vector (it has no direction), got {axis.tolist()}" if not np.any(axis)
-                         else f"axis is too {'short' if norm == 0.0 else 'long'} to normalise, got {axis.tolist()}")
+        raise _no_direction("axis", axis, float(norm), axis.tolist())
     return axis / norm
 
 
@@ -90,10 +98,6 @@ def matrix_to_axis_angle(R, *, tol: float = 1e-3) -> tuple[np.ndarray, float]:
     """Unit axis and angle in ``[0, pi]`` of one rotation matrix ``(3, 3)`` (axis ``[0, 0, 1]`` for
     identity). Raises :class:`InputError` for another shape (a stack too: use :func:`matrix_to_quat`
     or :func:`rotation_angle` for those), NaN, or a matrix that is not a rotation (to ``tol``)."""
-    R = float_array(R, "R")
-    if R.ndim > 2:
-        raise InputError(f"matrix_to_axis_angle takes one 3x3 matrix, got a stack of shape {R.shape} "
-                         "(matrix_to_quat and rotation_angle take stacks)")
     R = _rotations(R, "R", tol, stack=False)
     rv = _rotation().from_matrix(R).as_rotvec()
     angle = float(np.linalg.norm(rv))
@@ -125,10 +129,8 @@ def angle_between(u, v) -> np.ndarray:
         bad = ~((n > 0.0) & (n < np.inf))          # zero, or too short or too long for its length
         if np.any(bad):
             k = int(np.argmax(np.ravel(bad)))
-            got = x.tolist() if x.ndim == 1 else f"row {k + 1}: {x.reshape(-1, x.shape[-1])[k].tolist()}"
-            nk = float(np.ravel(n)[k])
-            raise InputError(f"{name} must be a non-zero vector (a zero vector has no direction), got {got}"
-                             if not np.any(x.reshape(-1, x.shape[-1])[k]) else
-                             f"{name} is too {'short' if nk == 0.0 else 'long'} to normalise, got {got}")
+            row = x.reshape(-1, x.shape[-1])[k]
+            got = x.tolist() if x.ndim == 1 else f"row {k + 1}: {row.tolist()}"
+            raise _no_direction(name, row, float(np.ravel(n)[k]), got)
     cos = np.sum(u * v, axis=-1) / (nu * nv)
     return np.arccos(np.clip(cos, -1.0, 1.0))

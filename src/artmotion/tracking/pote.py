@@ -6,6 +6,7 @@ The product of Gaussian densities is (up to normalisation, Eq. 2.1-2.2) the Gaus
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -54,8 +55,7 @@ def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
     cov = _inv2(info)
     cov = 0.5 * (cov + cov.T)
     mean = cov @ vec
-    s = mean[0] + mean[1]
-    if not s - s == 0:          # NaN or infinite: some belief's mean was
+    if not math.isfinite(mean[0] + mean[1]):     # some belief's mean was not finite
         raise InputError(_mean_problem(gaussians))
     return Gaussian(mean, cov)
 

@@ -16,14 +16,13 @@ Jacobians (Eq. 4.27-4.28). Data association is known (landmark ids).
 
 from __future__ import annotations
 
-import inspect
 import math
 import reprlib
 import sys
 
 import numpy as np
 
-from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
+from artmotion.articulation.slam.landmarks import MIN_RADIUS, Decision, Joint, LandmarkModels
 from artmotion.errors import InputError, check_range, float_array
 
 __all__ = ["motion_model", "control_noise", "observe", "inverse_observation", "gate_threshold", "EKFSlam"]
@@ -140,10 +139,6 @@ def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
     return idx.astype(int).tolist(), Z
 
 
-#: ``min_radius`` of :class:`LandmarkModels`: Algorithm 1 needs ``max_radius`` above it
-_MIN_RADIUS = inspect.signature(LandmarkModels).parameters["min_radius"].default
-
-
 def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulated, threshold, min_samples,
                      point_noise, max_radius, motion_var, accel, gate, undecided_var=0.0) -> tuple[np.ndarray, tuple]:
     """The arguments :class:`EKFSlam` and :class:`~artmotion.articulation.slam.graph.GraphSlam`
@@ -169,7 +164,7 @@ def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulat
         check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("min_samples", min_samples, 3, 10**9, integer=True)
         check_range("point_noise", point_noise, 0.0, math.inf, hi_open=True)
-        check_range("max_radius", max_radius, _MIN_RADIUS, math.inf, lo_open=True, hi_open=True)
+        check_range("max_radius", max_radius, MIN_RADIUS, math.inf, lo_open=True, hi_open=True)
         if accel is not None:
             check_range("accel", accel, 0.0, math.inf, hi_open=True)
     return x, tuple(float(v) for v in a)

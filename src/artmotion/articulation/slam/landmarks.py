@@ -206,6 +206,10 @@ class Decision:
     shape_cov: np.ndarray | None = None  #: covariance of the joint's ``(dx, dy, de)`` (3 x 3; a curve's 4 x 4)
 
 
+#: the least hinge radius a priori (m): Algorithm 1's radius range starts here
+MIN_RADIUS = 0.5
+
+
 class LandmarkModels:
     """Algorithm 1 per landmark id: ``observe(i, m, Pm, k)`` feeds a world position (and its
     covariance) seen at step ``k`` and returns a :class:`Decision` once a model passes ``threshold``.
@@ -215,7 +219,7 @@ class LandmarkModels:
     points' noise (the robot's own drift is not white noise)."""
 
     def __init__(self, dt: float, threshold: float = 0.75, min_samples: int = 7, point_noise: float = 0.15,
-                 max_radius: float = 5.0, accel: float | None = 0.1, min_radius: float = 0.5,
+                 max_radius: float = 5.0, accel: float | None = 0.1, min_radius: float = MIN_RADIUS,
                  curve: bool = False):
         self.dt = dt
         self.curve = curve

@@ -250,6 +250,26 @@ def test_a_video_that_ends_early_is_an_error(tmp_path):
         list(seq.frames())
 
 
+@pytest.mark.parametrize("count", [0, 3])
+def test_a_header_that_counts_too_few_frames_loses_none(tmp_path, count):
+    """An AVI whose stream header counts fewer frames than it holds (a recorder stopped before it
+    wrote the count): every frame that decodes is read (not the first ``count``), and the
+    sequence's length is the true count once read."""
+    import struct
+
+    frames, _ = moving_blob(n=20)
+    video = _video(tmp_path / "clip.avi", frames)
+    data = bytearray(video.read_bytes())
+    at = data.find(b"strh")
+    struct.pack_into("<I", data, at + 40, count)     # dwLength: the stream's frame count
+    video.write_bytes(bytes(data))
+    seq = open_sequence(video)
+    read = [n for n, _ in seq.frames()]
+    assert read == list(range(1, 21))
+    assert seq.length == 20
+    assert [n for n, _ in seq.frames()] == read      # read again, the same
+
+
 def test_seqlength_must_match_the_video(tmp_path):
     frames, _ = moving_blob(n=12)
     root = tmp_path / "vseq"

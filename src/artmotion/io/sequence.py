@@ -125,10 +125,8 @@ class Sequence:
             raise InputError("cannot open video", path=self.video)
         try:
             n = 0
-            while True:
-                ok, img = cap.read()
-                if not ok or img is None:
-                    break
+            ok, img = cap.read()
+            while ok and img is not None:
                 n += 1
                 if img.ndim == 2:
                     img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
@@ -138,12 +136,18 @@ class Sequence:
                 if reduce > 1:
                     img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield n, img
-                if n == self.length and self.length_exact:
-                    if self.length_from is not None and cap.read()[0]:
+                ok, img = cap.read()
+                if n == self.length and self.length_exact and ok and img is not None:
+                    if self.length_from is not None:
                         assert self.video is not None  # the capture was opened from it
                         raise InputError(f"seqinfo.ini says {self.length} frames but {self.video.name} has more",
                                          path=self.length_from)
-                    break
+                    # the container's header counts fewer frames than it holds (a recorder stopped
+                    # before it wrote the count): every frame that decodes is read, and the length
+                    # is the count of them once read
+                    self.length_exact = False
+            if n > self.length:
+                self.length = n
             if n == 0:
                 raise InputError("video has no decodable frames", path=self.video)
             short = self.length - n if self.length_exact else self.length - n - max(2, self.length // 50)

@@ -169,28 +169,50 @@ def test_bad_detect_every(run_cli, k):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "detect-every" in err
 
 
+class _Truth(Detector):
+    """TUD-Campus's ground truth as a detector: it knows each frame by its pixels."""
+
+    name = "truth"
+
+    def __init__(self, frames):
+        self.frames = frames
+        self.seen = []
+
+    def detect(self, frame):
+        n = next(k for k, img in self.frames if np.array_equal(img, frame))
+        self.seen.append(n)
+        gt = read_mot(SAMPLE / "gt" / "gt.txt")
+        g = gt[(gt[:, 0] == n) & (gt[:, 6] != 0)]
+        return g[:, 2:6], np.full(len(g), 0.9)
+
+
+def _image_folder(path, frames):
+    path.mkdir()
+    for n, img in frames:
+        cv2.imwrite(str(path / f"{n:06d}.png"), img)
+    return path
+
+
 def test_a_detector_of_your_own(tmp_path, tud_frames):
-    """track() takes any Detector; it runs on every detect_every-th frame only."""
+    """track() takes any Detector; it runs on every detect_every-th frame only, and on the last."""
     _, frames = tud_frames
-    gt = read_mot(SAMPLE / "gt" / "gt.txt")
-    seen = []
-
-    class Truth(Detector):
-        name = "truth"
-
-        def detect(self, frame):
-            n = len(seen) * 3 + 1            # detect_every=3: frames 1, 4, 7, ...
-            seen.append(n)
-            g = gt[(gt[:, 0] == n) & (gt[:, 6] != 0)]
-            return g[:, 2:6], np.full(len(g), 0.9)
-
-    folder = tmp_path / "imgs"
-    folder.mkdir()
-    for n, img in frames[:12]:
-        cv2.imwrite(str(folder / f"{n:06d}.jpg"), img)
-    res = track(folder, fps=25, detector=Truth(), detect_every=3)
-    assert res.detector == "truth" and seen == [1, 4, 7, 10]
+    truth = _Truth(frames[:12])
+    res = track(_image_folder(tmp_path / "imgs", frames[:12]), fps=25, detector=truth, detect_every=3)
+    assert res.detector == "truth" and truth.seen == [1, 4, 7, 10, 12]
     assert res.num_tracks >= 4
+    # the last frame's people are boxed: nothing after frame 10 confirmed them before
+    assert (res.tracks[:, 0] == 12).sum() >= 4
+
+
+@pytest.mark.parametrize("n, every", [(2, 2), (5, 5)])
+def test_a_clip_no_longer_than_the_detection_step_is_tracked(tmp_path, tud_frames, n, every):
+    """A clip of at most ``detect_every`` frames is detected on its first and last frames: two
+    frames of detections confirm its people (one frame did not: no track, and no word why)."""
+    _, frames = tud_frames
+    truth = _Truth(frames[:n])
+    res = track(_image_folder(tmp_path / "imgs", frames[:n]), fps=25, detector=truth, detect_every=every)
+    assert truth.seen == [1, n]
+    assert res.num_tracks >= 3
 
 
 def test_a_detector_of_your_own_is_held_to_a_detections_file():

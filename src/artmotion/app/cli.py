@@ -76,7 +76,7 @@ def run_cmd(
                                  help="Built-in person detector when there are no detections (auto: ssdlite when "
                                       "installed, else hog)."),
     detect_every: int = typer.Option(DETECT_EVERY, "--detect-every", metavar="K",
-                                     help="Run the built-in detector on every K-th frame."),
+                                     help="Run the built-in detector on every K-th frame and the last."),
     object_class: str = typer.Option("person", "--class", help="Object class named in sentences."),
     video: bool = typer.Option(True, "--video/--no-video", help="Also write annotated.mp4."),
     index: Optional[Path] = typer.Option(None, "--index", help="Add the run to this SQLite event index."),

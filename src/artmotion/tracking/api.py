@@ -76,9 +76,9 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
     """Feed ``frames`` (``(number, BGR image)`` pairs, decoded ``decode`` times smaller than the
     sequence) to ``tracker`` one by one; the experts look at images ``reduce`` times smaller.
     Detections come from ``detections`` (frame -> ``(N, 5)`` array) or, when ``detector`` is
-    given, from running it on every ``detect_every``-th frame (the experts and the motion model
-    carry the tracks in between), one frame ahead on a worker thread (OpenCV releases Python's
-    lock while it detects, so detection overlaps decoding and tracking). Returns the number of
+    given, from running it on every ``detect_every``-th frame and on the last (the experts and the
+    motion model carry the tracks in between), one frame ahead on a worker thread (OpenCV
+    releases Python's lock while it detects, so detection overlaps decoding and tracking). Returns the number of
     the last frame.
 
     Frame numbers must be whole numbers >= 1 that increase, images ``(height, width, 3)`` BGR
@@ -109,10 +109,15 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
 def _with_detections(frames, detections: dict, detector, every: int = 1):
     """``(number, image, detections)`` for each frame, ``None`` for detections on the frames other
     than every ``every``-th (not detected): from ``detections`` (a frame it does not list has
-    none), or from a ``detector`` run one frame ahead on a worker thread."""
+    none), or from a ``detector`` run one frame ahead on a worker thread, on the last frame too."""
     if detector is None:
+        last = None
         for k, (n, img) in enumerate(_pairs(frames)):
-            yield n, img, detections.get(n, _NONE) if k % every == 0 else None
+            if last is not None:
+                yield last
+            last = (n, img, detections.get(n, _NONE) if k % every == 0 else None)
+        if last is not None:
+            yield last[0], last[1], detections.get(last[0], _NONE)
         return
     from concurrent.futures import ThreadPoolExecutor
 
@@ -124,7 +129,11 @@ def _with_detections(frames, detections: dict, detector, every: int = 1):
                 yield _done(*pending)
             pending = (n, img, job)
         if pending is not None:
-            yield _done(*pending)
+            n, img, job = pending
+            # the last frame is always detected: nothing after it would confirm the boxes the
+            # motion model carries there (they were cut), and a clip of at most ``every`` frames
+            # would have one frame of detections, too few to confirm a track
+            yield _done(n, img, job if job is not None else pool.submit(detector, img))
 
 
 def _pairs(frames):
@@ -156,7 +165,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
     ``detector`` runs: a built-in one by name (:func:`~artmotion.tracking.detectors.make_detector`:
     ``auto``, ``ssdlite`` or ``hog``) or a :class:`~artmotion.tracking.detectors.Detector` of your
-    own. ``detect_every``: run that detector on every k-th frame only, the motion model (and the
+    own. ``detect_every``: run that detector on every k-th frame (and the last) only, the motion model (and the
     image experts) carrying the boxes in between. ``experts``: names of the tracking experts
     (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
     interpolation or tentative beginnings). ``progress``: a progress bar on stderr.

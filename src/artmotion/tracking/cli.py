@@ -46,8 +46,8 @@ def track_command(
                                  help="Built-in person detector when there are no detections: ssdlite (a CNN), "
                                       "hog (OpenCV's HOG), auto: ssdlite when installed, else hog."),
     detect_every: int = typer.Option(DETECT_EVERY, "--detect-every", metavar="K",
-                                     help="Run the built-in detector on every K-th frame; the tracker carries "
-                                          "the boxes in between."),
+                                     help="Run the built-in detector on every K-th frame and the last; the "
+                                          "tracker carries the boxes in between."),
     out: str = typer.Option(None, "--out", metavar="RESULTS.txt", help="Write the tracks (MOTChallenge text)."),
     events: str = typer.Option(None, "--events", metavar="EVENTS.jsonl",
                                help="Write enter/exit/merge/split events (JSON lines)."),

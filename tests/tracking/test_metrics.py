@@ -52,6 +52,18 @@ def test_perfect_tracking_scores_one():
     assert (s["MT"], s["PT"], s["ML"], s["GT_DETS"], s["GT"]) == (2, 0, 0, 20, 2)
 
 
+@pytest.mark.parametrize("thr", [0.5, 1.0])
+def test_results_identical_to_the_ground_truth_are_perfect_at_every_threshold(thr):
+    """At ``--iou 1`` too: a box's IoU with itself is exactly 1 (boxes with decimals, such as
+    x = 0.1, w = 0.2, gave 1 - 6e-15 and missed the threshold)."""
+    rng = np.random.default_rng(3)
+    rows = [[f, i, *np.round(rng.uniform(0, 600, 2), 2), *np.round(rng.uniform(0.1, 90, 2), 2), 1, -1, -1, -1]
+            for f in range(1, 31) for i in range(1, 8)]
+    gt = np.array(rows, dtype=float)
+    r = evaluate(gt, gt, iou_threshold=thr)
+    assert r["MOTA"] == r["IDF1"] == r["HOTA"] == r["MOTP"] == 1.0
+
+
 def test_renumbered_ids_are_still_perfect():
     gt = two_people()
     res = gt.copy()

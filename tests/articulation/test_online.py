@@ -227,3 +227,17 @@ def test_every_order_answers_on_noise_free_tracks(order):
     assert estimate_online(line, order=order).model == "prismatic"
     res = estimate_online(arc, order=order)
     assert res.model == "revolute" and np.all(np.isfinite(res.prediction))
+
+
+@pytest.mark.parametrize("offset", [(5e4, 5.4e6, 300.0), (1e9, -1e9, 0.0)])
+def test_an_offset_of_the_coordinates_does_not_change_the_answer(offset):
+    """The same 2 cm drawer track (0.05 mm noise) in coordinates far from the origin (UTM metres):
+    the noise floor follows the coordinates' float precision, not their size (it was 1e-9 of
+    their magnitude: 5.4 mm at 5.4e6 m, and the drawer came out undecided between line and arc)."""
+    rng = np.random.default_rng(3)
+    d = np.linspace(0.0, 0.02, 200)
+    X = np.column_stack([0.3 + d, np.full(200, 0.1), np.full(200, 0.5)]) + rng.normal(0.0, 5e-5, (200, 3))
+    here, there = estimate_online(X), estimate_online(X + np.array(offset))
+    assert here.model == there.model == "prismatic"
+    for name, p in here.probabilities.items():
+        assert there.probabilities[name] == pytest.approx(p, abs=1e-3)

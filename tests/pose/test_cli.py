@@ -356,3 +356,33 @@ def test_boxes_are_refused_where_they_would_do_nothing(small, run_cli, tmp_path)
         code, out, err = run_cli("pose", *args)
         assert code == 2 and err.count("\n") == 1 and "--boxes" in err, (args, err)
     assert not any((tmp_path / n).exists() for n in ("m.npz", "p.csv", "ev"))
+
+
+@pytest.mark.parametrize("keep, folds", [(4, 2), (5, 2), (9, 5)])
+def test_too_few_crops_for_the_folds_is_refused_with_the_real_minimum(small, run_cli, tmp_path, keep, folds):
+    """Two folds of 4 or 5 crops train on 2: refused up front, naming the labels file and the
+    number that is enough (it said 4 were enough for 2 folds, then failed with no file named)."""
+    from artmotion.pose.evaluate import least_examples
+
+    root, _ = small
+    lines = (root / "labels.csv").read_text().splitlines()
+    labels = tmp_path / "few.csv"
+    labels.write_text("\n".join(lines[: keep + 1]) + "\n")
+    crops = tmp_path / "crops"
+    crops.mkdir()
+    for line in lines[1: keep + 1]:
+        name = line.split(",")[0]
+        src = next((root / "crops").glob(name + ".*"), None) or root / "crops" / name
+        shutil.copy(src, crops / src.name)
+    need = least_examples(folds)
+    assert keep < need
+    _one_line(*run_cli("pose", "eval", crops, labels, "--feature", "hog", "--folds", folds)[::2],
+              f"few.csv: {keep} labelled crops: {folds}-fold cross-validation needs at least {need}")
+    # and the least number is enough
+    labels.write_text("\n".join(lines[: need + 1]) + "\n")
+    for line in lines[keep + 1: need + 1]:
+        name = line.split(",")[0]
+        src = next((root / "crops").glob(name + ".*"), None) or root / "crops" / name
+        shutil.copy(src, crops / src.name)
+    code, _, err = run_cli("pose", "eval", crops, labels, "--feature", "hog", "--folds", folds)
+    assert code == 0, err

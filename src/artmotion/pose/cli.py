@@ -85,7 +85,7 @@ def train_cmd(
 
     from artmotion.io import check_writable
     from artmotion.pose.data import load_labelled, read_views
-    from artmotion.pose.model import PoseRegressor
+    from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor
 
     if (images is None) != (labels is None):
         raise InputError("IMAGES and LABELS go together")
@@ -131,6 +131,9 @@ def train_cmd(
             Vs.append(read_views(bx, paths))
         groups += [k] * len(Y_k)
     Y = np.concatenate(Ys)
+    if len(Y) < MIN_EXAMPLES:
+        raise InputError(f"{len(Y)} labelled crops: training needs at least {MIN_EXAMPLES}",
+                         path=seqs[0][1] if len(seqs) == 1 else None)
     views = np.concatenate(Vs) if Vs else None
     t = time.perf_counter()
     reg.fit(imgs, Y, names, views=views, groups=groups)
@@ -210,7 +213,7 @@ def eval_cmd(
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
     from artmotion.pose.data import load_labelled, write_predictions
-    from artmotion.pose.evaluate import Columns, check_result_keys, cross_validate, summary
+    from artmotion.pose.evaluate import Columns, check_result_keys, cross_validate, least_examples, summary
     from artmotion.pose.model import PoseRegressor
 
     if split not in ("contiguous", "random"):
@@ -231,6 +234,9 @@ def eval_cmd(
     if out is not None:
         check_out_dir(out, replace=earlier, outputs=outputs)
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    if len(Y) < least_examples(folds):
+        raise InputError(f"{len(Y)} labelled crops: {folds}-fold cross-validation needs at least "
+                         f"{least_examples(folds)}", path=labels)
     views = _views(boxes, paths)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
     check_result_keys(names, cols, sets[1:], path=labels)  # a column 'orientation' would hide the stem's error

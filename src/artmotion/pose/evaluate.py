@@ -17,7 +17,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.pose.filter import PoseFilter, accel_variance
-from artmotion.pose.model import PoseRegressor
+from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor
 from artmotion.pose.render import stem_direction
 
 
@@ -98,6 +98,16 @@ def check_result_keys(names: Sequence[str], cols: Columns, sets: Sequence[str] =
         seen[key] = what
 
 
+def least_examples(folds: int) -> int:
+    """The fewest examples for ``folds``-fold cross-validation: two per fold, and every fold's
+    training set (the others) at least the :data:`~artmotion.pose.model.MIN_EXAMPLES` a model
+    needs (2 folds of 4 or 5 train on 2)."""
+    n = 2 * folds
+    while n - int(np.diff(np.linspace(0, n, folds + 1).astype(int)).max()) < MIN_EXAMPLES:
+        n += 1
+    return n
+
+
 def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: int = 5, progress: bool = False,
                    split: str = "random", seed: int = 0, views: np.ndarray | None = None, **reg_kwargs):
     """Out-of-fold predictions: ``(mean, std, filtered_mean, filtered_std, fold_id)``.
@@ -116,8 +126,9 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     n = len(X)
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
-    if folds < 2 or n < 2 * folds:
-        raise InputError(f"need at least {2 * folds} examples for {folds}-fold cross-validation, got {n}")
+    if folds < 2 or n < least_examples(folds):
+        raise InputError(f"need at least {least_examples(max(folds, 2))} examples for {folds}-fold cross-validation, "
+                         f"got {n}")
     edges = np.linspace(0, n, folds + 1).astype(int)
     mean = np.empty_like(Y)
     std = np.empty_like(Y)

@@ -30,6 +30,8 @@ VERSION = 2
 NET_MEANS = ("opening", "all", "none")
 #: the last fraction of the training rows on which the GP's variance is calibrated
 CALIBRATE = 0.2
+#: the fewest labelled crops a model is trained on
+MIN_EXAMPLES = 3
 #: :meth:`PoseRegressor.domain_auc`: least AUC of crops that are not what the model was trained on,
 #: the fewest crops it judges
 FOREIGN_AUC = 0.9
@@ -283,8 +285,8 @@ class PoseRegressor:
         X = self._as_features(images)
         if len(X) != len(Y):
             raise InputError(f"{len(X)} images but {len(Y)} label rows")
-        if len(X) < 3:
-            raise InputError("need at least 3 training examples")
+        if len(X) < MIN_EXAMPLES:
+            raise InputError(f"need at least {MIN_EXAMPLES} training examples, got {len(X)}")
         self.names_ = names
         self.pca_mean_ = self.pca_components_ = None
         self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None

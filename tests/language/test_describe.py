@@ -151,6 +151,18 @@ def test_events_merge_split_and_sides():
     assert [t.frames[0] for t in out] == sorted(t.frames[0] for t in out)
 
 
+def test_class_names_in_any_script():
+    """--class takes letters of any script (it took ASCII only: "café" was refused), not digits
+    or underscores."""
+    f = np.arange(1, 61)
+    rows = box_rows(1, f, 100 + 3 * f, np.full(60, 200)) + box_rows(2, f, 130 + 3 * f, np.full(60, 220), w=60, h=80)
+    out = describe(np.array(rows, float), classes=parse_classes(["Überwagen", "2=café"]), image_size=(W, H))
+    assert "Überwagen 1 interacts with café 2 from frame 1 to frame 60." in sentences(out)
+    for bad in ("a1", "a_b", "-a", "2=3"):
+        with pytest.raises(InputError, match="--class"):
+            parse_classes([bad])
+
+
 def test_interaction_between_classes():
     f = np.arange(1, 61)
     rows = box_rows(1, f, 100 + 3 * f, np.full(60, 200)) + box_rows(2, f, 130 + 3 * f, np.full(60, 220), w=60, h=80)

@@ -93,7 +93,7 @@ def parse_classes(specs: list[str] | None, default: str = "person") -> tuple[str
 
 def _class_word(name: str) -> str:
     name = name.strip()
-    if not re.fullmatch(r"[A-Za-z][A-Za-z \-]*", name):
+    if not re.fullmatch(r"[^\W\d_](?:[^\W\d_]|[ \-])*", name):  # letters of any script ("café", "Überwagen")
         raise ValueError(name)
     return name.lower()
 

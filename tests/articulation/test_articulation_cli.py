@@ -195,3 +195,12 @@ def test_a_door_in_millimetres_says_the_radius_prior_rules_the_circle_out(tmp_pa
     D, _ = synthetic_log("drawer", seed=1)
     code, out, _ = run_cli("articulation", "fit", _write(tmp_path / "d.txt", D * 1000), "--json")
     assert json.loads(out)["model"] == "prismatic" and json.loads(out)["note"] is None
+
+
+def test_one_pose_sample_prints_no_none(run_cli, tmp_path):
+    """A pose track of one sample has no noise estimate: said in words (it printed "None")."""
+    log = tmp_path / "one.csv"
+    log.write_text("x,y,z,qx,qy,qz,qw\n0.1,0.2,0.3,0,0,0,1\n")
+    code, out, err = run_cli("articulation", "fit", log)
+    assert code == 0, err
+    assert "None" not in out and "noise std: not estimated" in out

@@ -74,7 +74,10 @@ def fit(
     if out.get("noise_per_model"):
         typer.echo("noise std per model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in out["noise_per_model"].items()))
     if out["input"] == "pose":
-        typer.echo(f"noise std: {_fmt(out['noise'])} (position), {_fmt(out['angular_noise'])} rad (orientation)")
+        if out["noise"] is None:   # (one sample: no motion to estimate it from)
+            typer.echo("noise std: not estimated (too few samples)")
+        else:
+            typer.echo(f"noise std: {_fmt(out['noise'])} (position), {_fmt(out['angular_noise'])} rad (orientation)")
         unused = [name for name, changed in (("--threshold", threshold != 0.75), ("--order", order != 2),
                                              ("--radius-range", tuple(radius_range) != (0.05, 1.0))) if changed]
         if unused:

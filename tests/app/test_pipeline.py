@@ -214,3 +214,21 @@ def test_batch_cli_reports_failures(tmp_path, run_cli):
     assert err.startswith("artmotion: error:") and err.count("\n") == 1, err
     code, _, err = run_cli("batch", tmp_path / "nothing-here")
     assert code == 2 and "not a folder" in err
+
+
+def test_run_takes_the_frame_rate_of_a_folder_of_images(tmp_path, run_cli):
+    """A folder of images says no frame rate (25 is assumed): --fps gives it, and a rate out of
+    range is one line before any work."""
+    import json
+
+    from conftest import SAMPLE
+
+    seq = small_sequence(SAMPLE, tmp_path / "s", n=8)
+    frames = seq / "img1"
+    code, out, err = run_cli("run", frames, "--det", seq / "det" / "det.txt", "--fps", "12.5", "--no-video",
+                             "--out", tmp_path / "r")
+    assert code == 0, err
+    assert json.loads((tmp_path / "r" / "run.json").read_text())["sequence"]["fps"] == 12.5
+    code, out, err = run_cli("run", frames, "--det", seq / "det" / "det.txt", "--fps", "0", "--out", tmp_path / "r2")
+    assert code == 2 and err.startswith("artmotion: error: --fps") and err.count("\n") == 1, err
+    assert not (tmp_path / "r2").exists()

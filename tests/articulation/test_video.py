@@ -201,12 +201,34 @@ def test_cli_one_frame_is_one_line_error(tmp_path, run_cli):
     assert code == 2 and out == "" and err.count("\n") == 1
     assert err.startswith(f"artmotion: error: {folder}: 1 frame") and not (tmp_path / "o").exists()
 
+def test_cli_fps_of_a_folder_of_frames(tmp_path, run_cli):
+    """A folder of frames says no frame rate: 25 is assumed and said so; --fps gives it (the time
+    a part must rest first, and the motion models, are in seconds)."""
+    v = part_video(tmp_path / "s.avi", "static", frames=12)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cap = cv2.VideoCapture(str(v))
+    k = 0
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        k += 1
+        cv2.imwrite(str(folder / f"{k:06d}.png"), img)
+    cap.release()
+    code, out, err = run_cli("articulation", "video", folder)
+    assert code == 0 and "12 frames @ 25 fps (assumed; give --fps)" in out, (out, err)
+    code, out, err = run_cli("articulation", "video", folder, "--fps", "12.5", "--json")
+    assert code == 0 and json.loads(out)["fps"] == 12.5, err
+
+
 def test_cli_bad_options(tmp_path, run_cli):
     v = tmp_path / "missing.avi"
     code, _, err = run_cli("articulation", "video", v)
     assert code == 2 and "no such file" in err
     v = part_video(tmp_path / "s.avi", "static", frames=12)
-    for args in (("--focal", "0"), ("--focal", "nan"), ("--max-parts", "0"), ("--seed", "-1")):
+    for args in (("--focal", "0"), ("--focal", "nan"), ("--max-parts", "0"), ("--seed", "-1"), ("--fps", "0"),
+                 ("--fps", "inf")):
         code, _, err = run_cli("articulation", "video", v, *args)
         assert code == 2 and err.startswith("artmotion: error: "), (args, err)
 

@@ -85,6 +85,8 @@ def run_cmd(
     tool_model: Optional[Path] = typer.Option(None, "--tool-model",
                                               help="Tool model (artmotion tool train): track surgical instruments "
                                                    "instead of people."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder "
+                                                           "of images; else 25 is assumed)."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys
@@ -98,7 +100,8 @@ def run_cmd(
         raise InputError("is inside the run folder --out: keep the index outside it (next to it)", path=db)
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
-                       pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model)
+                       pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model,
+                       fps=fps)
     why = too_short(res.num_tracks, res.frames)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s{': ' + why if why else ''}")

@@ -170,6 +170,7 @@ def run_pipeline(
     detector: str = "auto",
     detect_every: int = DETECT_EVERY,
     tool_model: str | os.PathLike | None = None,
+    fps: float | None = None,
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
@@ -179,6 +180,8 @@ def run_pipeline(
     the built-in detector when ``source`` has no detections (``auto``, ``ssdlite``, ``hog``), run
     on every ``detect_every``-th frame. ``tool_model`` (from ``artmotion tool train``): track
     surgical instruments with it instead of people; their entries and exits come from the tracks.
+    ``fps``: the frame rate, when the input does not say it (a folder of images; else 25 is
+    assumed) or says it wrong.
     """
     from artmotion.language.describe import parse_classes
     from artmotion.tracking import open_sequence
@@ -189,6 +192,7 @@ def run_pipeline(
         raise InputError(f"--class {object_class!r}: run takes one NAME for every track")
     object_class = word
     seq = open_sequence(source)
+    seq.set_fps(fps)
     # everything that can be checked is checked before the long work: the pose model (loaded and
     # tried on a crop), the ground truth
     pose = load_pose_model(pose_model) if pose_model is not None else None

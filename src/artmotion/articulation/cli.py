@@ -97,6 +97,8 @@ def video(
     focal: Optional[float] = typer.Option(None, "--focal", help="Focal length in pixels [default: a 60-degree field of view]."),
     max_parts: int = typer.Option(3, "--max-parts", help="Most moving parts to look for."),
     seed: int = typer.Option(0, "--seed", help="Random seed of the part search (RANSAC)."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder "
+                                                           "of frames; else 25 is assumed)."),
 ):
     """Find the parts that move in a video and name the joint of the one that moves most."""
     import sys
@@ -119,17 +121,19 @@ def video(
         with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       transient=True) as progress:
             task = progress.add_task("tracking", total=None)
-            res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
+            res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots, fps=fps,
                                 on_frame=lambda done, total: progress.update(task, completed=done, total=total))
     else:
-        res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots)
+        res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots, fps=fps)
     d = res.to_dict()
     if out is not None:
         _write_video_outputs(out, res, d)
     if as_json:
         typer.echo(json.dumps(d, allow_nan=False))
         return
-    typer.echo(f"{source}: {d['frames']} frames, camera {d['camera']}, noise {d['noise_px']:.2f} px")
+    assumed = "" if res.fps_known else " (assumed; give --fps)"
+    typer.echo(f"{source}: {d['frames']} frames @ {d['fps']:g} fps{assumed}, camera {d['camera']}, "
+               f"noise {d['noise_px']:.2f} px")
     typer.echo(f"model: {d['model']}  (confidence {d['confidence']:.2f}){': ' + d['note'] if d['note'] else ''}")
     for k, p in enumerate(d["parts"], start=1):
         rng = p.get("range") or {}

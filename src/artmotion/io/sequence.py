@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.io.media import (
     IMAGE_EXTS,
     MAX_FPS,
@@ -80,6 +80,12 @@ class Sequence:
 
     def __len__(self) -> int:
         return self.length
+
+    def set_fps(self, fps: float | None, name: str = "--fps") -> None:
+        """Take ``fps`` (frames/s, within the range a frame rate may have) as the frame rate, the
+        input's own or the assumed :data:`DEFAULT_FPS` notwithstanding; ``None`` keeps it."""
+        if fps is not None:
+            self.fps, self.fps_known = float(check_range(f"{name} (frames/s)", fps, MIN_FPS, MAX_FPS)), True
 
     @property
     def folder(self) -> Path | None:

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError, check_range
-from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import check_experts
@@ -182,9 +181,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
         raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
     check_range("--detect-every", detect_every, 1, 100, integer=True)
     seq = open_sequence(source)
-    if fps is not None:
-        check_range("frame rate (frames/s)", fps, MIN_FPS, MAX_FPS)
-        seq.fps, seq.fps_known = float(fps), True
+    seq.set_fps(fps, "frame rate")
     det_path = Path(det) if det is not None else seq.det_path
     model = None
     if det_path is not None:

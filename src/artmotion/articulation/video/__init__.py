@@ -56,6 +56,8 @@ class VideoArticulation:
     snapshots: dict[int, np.ndarray] = field(default_factory=dict)
     #: why no part could be found, when none could be whatever moved ("" otherwise)
     note: str = ""
+    #: False when the input did not say its frame rate and 25 frames/s were assumed
+    fps_known: bool = True
 
     @property
     def model(self) -> str:
@@ -100,11 +102,14 @@ def snapshot_frames(frames: int, count: int) -> list[int]:
 
 
 def analyze_video(source: str | os.PathLike, focal: float | None = None, max_parts: int = 3, seed: int = 0,
-                  on_frame: Callable[[int, int], None] | None = None, snapshots: int = 0) -> VideoArticulation:
+                  on_frame: Callable[[int, int], None] | None = None, snapshots: int = 0,
+                  fps: float | None = None) -> VideoArticulation:
     """Open ``source`` (a video file or a folder of frames) and find its moving parts' joints.
     ``on_frame(done, total)`` reports progress while tracking; ``snapshots`` frames spread over
     the video (the last one read included) are kept in the result, for :func:`parts_strip`:
-    a whole number >= 0 (0: none), at most :data:`~artmotion.io.mot.MAX_FRAME`."""
+    a whole number >= 0 (0: none), at most :data:`~artmotion.io.mot.MAX_FRAME`. ``fps``: the
+    frame rate, when the input does not say it (a folder of frames; else 25 is assumed) or says
+    it wrong: the time a part must rest first, and the motion models, are in seconds."""
     from artmotion.articulation.video.tracks import point_tracks
     from artmotion.io.mot import MAX_FRAME
     from artmotion.io.sequence import open_sequence
@@ -112,6 +117,7 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     _check_options(focal, max_parts, seed)
     snapshots = check_range("snapshots", snapshots, 0, MAX_FRAME, integer=True)
     seq = open_sequence(source)
+    seq.set_fps(fps, "fps")
     total = len(seq)
     want = set(snapshot_frames(total, snapshots))
     kept: dict[int, np.ndarray] = {}
@@ -132,6 +138,7 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
         raise InputError(f"{tracks.frames} frame: motion needs at least two", path=source)
     res = analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
     res.snapshots = kept
+    res.fps_known = seq.fps_known
     return res
 
 

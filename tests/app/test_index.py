@@ -121,6 +121,22 @@ def test_fulltext_fallback_and_empty(index):
         index.search("   ")
 
 
+def test_numbers_in_a_query_are_never_matched_as_text(tmp_path):
+    """A track id or frame the structured match does not find is not looked up as a word: "frame 0"
+    found every sentence with "0.0 s", "person -2" found person 2 (full text splits off the minus)."""
+    run = make_run(tmp_path, "yard", [
+        S("Person 2 enters from the left at 0.0 s (frames 10-10).", "enters", "left", [2], 10, 10),
+        S("Person 2 lingers near the gate at 2.0 s (frames 50-60).", "lingers", None, [2], 50, 60),
+    ])
+    with EventIndex(tmp_path / "n.sqlite") as idx:
+        idx.add_run(run)
+        assert idx.search("frame 0") == []
+        assert idx.search("person -2") == []
+        assert idx.search("lingers at frame 40") == []
+        assert idx.search("person 1 gate") == []
+        assert [h.frame_start for h in idx.search("gate at frame 55")] == [50]
+
+
 def test_a_damaged_fulltext_index_is_no_empty_answer(index, tmp_path):
     """quick_check does not look inside FTS5's blocks: zeroed, they read as 'no match'."""
     import contextlib

@@ -324,7 +324,7 @@ class EventIndex:
                                  path=self.path)
             hits = self._structured(q, video) if q.structured else []
             if not hits:      # (also what an index made before a verb was told apart files it under)
-                hits = self._fulltext(text, video)
+                hits = self._fulltext(text, video, q)
         hits.sort(key=lambda h: (-h.score, h.video, h.frame_start or 0))
         return hits[:limit]
 
@@ -350,9 +350,7 @@ class EventIndex:
             + 1.0 * (q.subject is not None) + 1.0 * (q.frame is not None)
         for name, src, run_dir, sentence, subject, canon, adjective, tracks, f0, f1, _ in self._rows(video, where, params):
             track_ids = json.loads(tracks)
-            if q.track is not None and q.track not in track_ids:
-                continue
-            if q.frame is not None and not (f0 is not None and f0 <= q.frame <= (f1 if f1 is not None else f0)):
+            if not _holds(q, track_ids, f0, f1):
                 continue
             direction_ok = q.direction is not None and q.direction in (adjective or "").split()
             if q.verb is None and q.direction is not None and not direction_ok:
@@ -366,8 +364,11 @@ class EventIndex:
                             source=src))
         return hits
 
-    def _fulltext(self, text: str, video: str | None) -> list[Hit]:
-        terms = re.findall(r"\w+", text.lower())
+    def _fulltext(self, text: str, video: str | None, q: Query) -> list[Hit]:
+        """Sentences holding every word of ``text`` (stemmed). Numbers are not words here: the
+        query's track id and frame (:func:`parse_query`) must hold as in the structured match ("frame
+        0" found every sentence with "0.0 s", "person -3" found person 3)."""
+        terms = [t for t in re.findall(r"\w+", text.lower()) if not t.isdigit()]
         if not terms:
             return []
         match = " AND ".join(f'"{t}"' for t in terms)  # every word, stemmed (porter): "merges" finds "merge"
@@ -379,10 +380,11 @@ class EventIndex:
             self._check_fulltext()
             return []
         where = f" AND s.id IN ({','.join('?' * len(rank))})"
-        return [Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), action, adjective, subject, run_dir,
+        hits = [Hit(name, sentence, f0, f1, json.loads(tracks), float(rank[sid]), action, adjective, subject, run_dir,
                     match="fulltext", source=src)
                 for name, src, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
                 in self._rows(video, where, tuple(rank))]
+        return [h for h in hits if _holds(q, h.tracks, h.frame_start, h.frame_end)]
 
     def _check_fulltext(self) -> None:
         """Raise (through :meth:`_errors`) when the full-text index is damaged. ``PRAGMA
@@ -395,6 +397,14 @@ class EventIndex:
             copy.execute("INSERT INTO sentences_fts(sentences_fts) VALUES('integrity-check')")
         finally:
             copy.close()
+
+
+def _holds(q: Query, tracks: list[int], f0: int | None, f1: int | None) -> bool:
+    """Whether a sentence about ``tracks`` over frames ``f0``-``f1`` has the query's track id and
+    spans its frame (each when asked for)."""
+    if q.track is not None and q.track not in tracks:
+        return False
+    return q.frame is None or (f0 is not None and f0 <= q.frame <= (f1 if f1 is not None else f0))
 
 
 def _canon_verb(verb: str | None) -> str | None:

@@ -50,12 +50,17 @@ def _features(name: str, X, dim: int | None = None) -> np.ndarray:
     return X
 
 
+def _is_block_list(blocks) -> bool:
+    """Feature arrays given as a list (or tuple) of them, or as one 3-D array."""
+    return isinstance(blocks, (list, tuple)) or (isinstance(blocks, np.ndarray) and blocks.ndim == 3)
+
+
 def _blocks(visual, audio) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """``visual`` concepts and ``audio`` segments checked: lists (or tuples) of feature arrays,
     as many of each (at least one), every one of finite numbers and all with the same examples
     (rows); else an :class:`InputError` naming the block."""
     for name, blocks, one in (("visual", visual, "concept"), ("audio", audio, "segment")):
-        if not (isinstance(blocks, (list, tuple)) or (isinstance(blocks, np.ndarray) and blocks.ndim == 3)):
+        if not _is_block_list(blocks):
             shape = f" of shape {blocks.shape}" if isinstance(blocks, np.ndarray) else ""
             raise InputError(f"{name} must be a list of feature arrays, one per {one}, got {type(blocks).__name__}{shape}")
     if len(visual) != len(audio) or not len(visual):
@@ -253,7 +258,7 @@ class CompositionalSparse:
     def _check_blocks(self, blocks, what: str) -> None:
         if not hasattr(self, "models_"):
             raise _not_fitted(type(self).__name__)
-        if not (isinstance(blocks, (list, tuple)) or (isinstance(blocks, np.ndarray) and blocks.ndim == 3)):
+        if not _is_block_list(blocks):
             raise InputError(f"expected a list of {len(self.models_)} {what} (feature arrays), got {type(blocks).__name__}")
         if len(blocks) != len(self.models_):
             raise InputError(f"expected {len(self.models_)} {what}, got {len(blocks)}")

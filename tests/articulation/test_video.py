@@ -13,6 +13,7 @@ from artmotion.articulation.video import analyze_video
 from artmotion.articulation.video.joint import plane_rectifier
 from artmotion.articulation.video.segment import chain_affines, factorise_motion, moving_tracks, noise_level
 from artmotion.articulation.video.tracks import PointTracks, point_tracks
+from artmotion.errors import InputError
 from artmotion.geometry.affine import apply
 from artmotion.io.sequence import open_sequence
 
@@ -238,8 +239,6 @@ def test_cli_bad_options(tmp_path, run_cli):
     ({"focal": -500.0}, "focal"), ({"focal": float("nan")}, "focal"), ({"seed": -1}, "seed"),
 ])
 def test_analyze_video_refuses_options_the_cli_refuses(kwargs, match):
-    from artmotion.errors import InputError
-
     with pytest.raises(InputError, match=f"^{match} must be"):  # before the video is even opened
         analyze_video("/nonexistent/v.avi", **kwargs)
 
@@ -260,3 +259,19 @@ def test_a_clip_too_short_for_the_rest_test_says_so(tmp_path, run_cli):
     assert d["camera"] == "static" and "no texture" in d["note"]
     d = json.loads(run_cli("articulation", "video", part_video(tmp_path / "ok.avi", "prismatic", frames=45), "--json")[1])
     assert d["model"] == "prismatic" and d["note"] is None
+
+
+def test_draw_parts_on_grey_and_refuses_other_images(tmp_path):
+    """draw_parts draws on BGR or grey uint8 (OpenCV's images); a float image was a raw cv2.error."""
+    from artmotion.articulation.video import draw_parts, parts_strip
+
+    res = analyze_video(part_video(tmp_path / "slide.avi", "prismatic"))
+    assert res.found
+    grey = np.full((res.tracks.height, res.tracks.width), 128, np.uint8)
+    out = draw_parts(grey, res)
+    assert out.shape == grey.shape + (3,) and out.dtype == np.uint8 and (out != 128).any()
+    for bad in (grey.astype(np.float32) / 255, np.dstack([grey] * 4), grey.astype(np.uint16)):
+        with pytest.raises(InputError, match="draw_parts draws on a BGR"):
+            draw_parts(bad, res)
+    with pytest.raises(InputError, match="no snapshots"):
+        parts_strip(res)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from artmotion.errors import InputError
 from artmotion.geometry import box_center
 from artmotion.tracking.experts import (
     EXPERTS,
@@ -62,6 +63,11 @@ def test_box_gaussian_is_eq_2_9():
     g = box_gaussian([10, 20, 30, 60])
     np.testing.assert_allclose(g.mean, [25, 50])
     np.testing.assert_allclose(g.cov, np.diag([5.0, 10.0]))
+    one = box_gaussian(np.array([[10.0, 20.0, 30.0, 60.0]]))    # a stack of one box (was an IndexError)
+    np.testing.assert_allclose(one.mean, g.mean)
+    for bad in (np.zeros((2, 4)) + 1, [1.0, 2.0, 3.0], np.ones((4, 1))):
+        with pytest.raises(InputError, match=r"box_gaussian takes one box"):
+            box_gaussian(bad)
 
 
 def test_klt_follows_the_blob(blob_video):

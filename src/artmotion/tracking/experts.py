@@ -59,8 +59,13 @@ class Gaussian:
 
 
 def box_gaussian(box, scale: float = 1.0) -> Gaussian:
-    """Eq. 2.9: a box ``[x, y, w, h]`` as ``N(centre, diag(w, h) / 6)`` (times ``scale``)."""
+    """Eq. 2.9: a box ``[x, y, w, h]`` as ``N(centre, diag(w, h) / 6)`` (times ``scale``); one box
+    (shape ``(4,)``, or a stack of one)."""
     box = np.asarray(box, dtype=float)
+    if box.shape != (4,):
+        if box.shape != (1, 4):
+            raise InputError(f"box_gaussian takes one box x, y, w, h (shape (4,)), got shape {box.shape}")
+        box = box[0]
     if not (box[2] > 0 and box[3] > 0):      # (NaN too) a box of no size would be a certain belief
         raise InputError(f"box_gaussian needs a box of positive width and height, got {box[2]:g}x{box[3]:g}")
     return Gaussian(box_center(box), np.diag([max(box[2], 1e-3), max(box[3], 1e-3)]) / 6.0 * scale)

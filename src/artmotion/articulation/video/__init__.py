@@ -145,16 +145,19 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
 def parts_strip(result: VideoArticulation) -> np.ndarray:
     """The result's snapshots side by side, each with :func:`draw_parts` up to its frame."""
     if not result.snapshots:
-        raise ValueError("no snapshots: analyze_video(..., snapshots=4) keeps them")
+        raise InputError("no snapshots: analyze_video(..., snapshots=4) keeps them")
     return np.hstack([draw_parts(img, result, frame=k) for k, img in sorted(result.snapshots.items())])
 
 
 def draw_parts(image: np.ndarray, result: VideoArticulation, frame: int | None = None) -> np.ndarray:
-    """``image`` with each part's tracks (up to ``frame``) in its own colour and its fitted axis or
-    line drawn, labelled with the model."""
+    """``image`` (BGR uint8, or grey uint8) with each part's tracks (up to ``frame``) in its own
+    colour and its fitted axis or line drawn, labelled with the model."""
     import cv2
 
-    out = image.copy()
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
+        raise InputError(f"draw_parts draws on a BGR (or grey) uint8 image, got {image.dtype} of shape {image.shape}")
+    out = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
     colours = [(60, 200, 60), (60, 60, 230), (230, 120, 40), (200, 60, 200), (40, 200, 220)]
     xy = result.tracks.xy if frame is None else result.tracks.xy[: frame + 1]
     for k, (part, d) in enumerate(zip(result.found, result.parts)):

@@ -166,3 +166,26 @@ def test_a_fitted_compositional_model_wants_a_list_of_blocks():
     assert [g.shape for g in m.audio_to_visual([A1[:2], A2[:2]])] == [(2, 3), (2, 5)]
     with pytest.raises(InputError, match="expected a list of 2 audio segments"):
         m.audio_to_visual(A1[:2])
+
+
+@pytest.mark.parametrize("cls", ["PairedSparse", "CompositionalSparse"])
+def test_grounding_models_are_scikit_learn_estimators(cls):
+    """clone, get_params/set_params and a repr of the parameters (sklearn's clone raised TypeError)."""
+    import pickle
+
+    from sklearn.base import clone
+
+    from artmotion.language.grounding import sparse
+
+    est = getattr(sparse, cls)(n_atoms=8, lam=0.2)
+    assert est.get_params() == {"n_atoms": 8, "lam": 0.2, "max_iter": 60, "seed": 0}
+    assert repr(est) == f"{cls}(lam=0.2, n_atoms=8)"
+    assert est.set_params(seed=3) is est and est.seed == 3
+    if cls == "PairedSparse":
+        rng = np.random.default_rng(0)
+        X, Y = rng.normal(size=(40, 6)), rng.normal(size=(40, 5))
+        est.fit(X, Y)
+        again = pickle.loads(pickle.dumps(est))
+        np.testing.assert_array_equal(again.visual_to_audio(X), est.visual_to_audio(X))
+    fresh = clone(est)
+    assert fresh.get_params() == est.get_params() and not any(k.endswith("_") for k in vars(fresh))

@@ -24,6 +24,7 @@ import warnings
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from sklearn.base import BaseEstimator
 from sklearn.cluster import KMeans
 from sklearn.decomposition import DictionaryLearning
 from sklearn.exceptions import ConvergenceWarning
@@ -109,7 +110,7 @@ class BlockScaler:
         return np.asarray(Z, dtype=float) * self.scale_ + self.mean_
 
 
-class PairedSparse:
+class PairedSparse(BaseEstimator):
     """Two dictionaries ``U`` (visual) and ``V`` (audio) coupled by shared l1-sparse codes."""
 
     def __init__(self, n_atoms: int = 48, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):
@@ -224,7 +225,7 @@ def estimate_linking(visual: list[np.ndarray], audio: list[np.ndarray], seed: in
     return H, M
 
 
-class CompositionalSparse:
+class CompositionalSparse(BaseEstimator):
     """One paired sparse model per (visual concept, audio segment) pair linked by ``H``."""
 
     def __init__(self, n_atoms: int = 24, lam: float = LAMBDA, max_iter: int = 60, seed: int = 0):

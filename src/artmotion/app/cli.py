@@ -194,6 +194,9 @@ def batch_cmd(
     index: Optional[Path] = typer.Option(None, "--index", help="Add every finished run to this SQLite index."),
 ):
     """Run the pipeline on every item of FOLDER on Dask; failures are isolated and listed."""
+    import sys
+
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from artmotion.app.batch import BatchInterrupted, run_batch
@@ -202,8 +205,9 @@ def batch_cmd(
     check_range("--workers", workers, 1, 4 * (os.cpu_count() or 1), integer=True)  # (4 processes per core at most)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
     try:
+        # the bar on stderr, and only on a terminal (on stdout it left an empty line before the report)
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      transient=True) as progress:
+                      transient=True, console=Console(stderr=True), disable=not sys.stderr.isatty()) as progress:
             task = progress.add_task("batch", total=None)
 
             def on_progress(outcome, done, total):

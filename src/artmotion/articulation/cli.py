@@ -116,10 +116,11 @@ def video(
         _check_video_out(out)     # before the tracking (a read-only folder failed after it)
     snapshots = 4 if out is not None else 0
     if sys.stderr.isatty():
+        from rich.console import Console
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      transient=True) as progress:
+                      transient=True, console=Console(stderr=True)) as progress:
             task = progress.add_task("tracking", total=None)
             res = analyze_video(source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots, fps=fps,
                                 on_frame=lambda done, total: progress.update(task, completed=done, total=total))

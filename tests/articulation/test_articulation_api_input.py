@@ -317,3 +317,114 @@ def test_classify_motion_two_frames_in_a_plane():
     """Two translations off one line span a plane: planar, not an IndexError (the reduced SVD of 2
     frames has no third direction)."""
     assert classify_motion(np.stack([np.eye(3)] * 2), [[0.1, 0.0, 0.0], [0.0, 0.1, 0.0]]).model == "planar"
+
+
+# -- 6. whole-number floats are the integers they are (they passed the checks, then crashed deep inside)
+
+
+def test_online_takes_whole_number_floats_for_its_integer_parameters():
+    X = _arc3()
+    base = estimate_online(X).to_dict()
+    for kwargs in ({"order": 2.0}, {"dim": 3.0}, {"min_samples": 7.0},
+                   {"order": np.float64(2.0), "dim": np.int64(3), "min_samples": np.float64(7.0)}):
+        assert estimate_online(X, **kwargs).to_dict() == base, kwargs   # (once: TypeError)
+    assert estimate_online(X, order=3.0).to_dict() == estimate_online(X, order=3).to_dict()
+    P = X[:, :2]
+    assert estimate_online(P, dim=2.0).to_dict() == estimate_online(P).to_dict()
+
+
+def test_online_result_checks_its_horizon():
+    est = OnlineEstimator()
+    for z in _arc3():
+        est.update(z)
+    assert np.array_equal(est.result(horizon=3.0).prediction, est.result(horizon=3).prediction)
+    assert est.result(horizon=3).prediction.shape == (3, 3)
+    for bad in (-1, 2.5, "5", None):
+        with pytest.raises(InputError, match="horizon must be a whole number"):
+            est.result(horizon=bad)
+
+
+# -- 7. point models copy the arrays they are given (they kept the caller's array, and followed its changes)
+
+
+def _mutate(*arrays):
+    for a in arrays:
+        a[:] = [7.0, -3.0, 2.0]
+
+
+@pytest.mark.parametrize("case", ["static", "prismatic", "revolute", "revolute-planar", "planar", "planar-axis"])
+def test_point_models_copy_the_arrays_they_are_given(case):
+    o, d, u, ax = np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    if case == "static":
+        m = StaticModel(o)
+        _mutate(o)
+        assert m.predict(np.zeros((1, 0))).tolist() == [[0.0, 0.0, 0.0]]  # (once: [[7, -3, 2]])
+        assert m.configuration()["centre"] == [0.0, 0.0, 0.0]
+    elif case == "prismatic":
+        m = PrismaticModel(o, d)
+        _mutate(o, d)
+        assert m.predict([1.0]).tolist() == [[1.0, 0.0, 0.0]]
+    elif case == "revolute":
+        m = RevoluteModel(centre=o, axis=ax, radius=1.0, u=u)
+        _mutate(o, ax, u)
+        np.testing.assert_allclose(m.predict([math.pi / 2]), [[0.0, 1.0, 0.0]], atol=1e-15)
+    elif case == "planar":
+        m = PlanarModel(origin=o, normal=ax)
+        _mutate(o, ax)
+        assert m.configuration()["origin"] == [0.0, 0.0, 0.0] and m.configuration()["normal"] == [0.0, 0.0, 1.0]
+    else:
+        X = _arc3()
+        X[:, 2] = 0.0
+        cls = RevoluteModel if case == "revolute-planar" else PlanarModel
+        want = cls(planar_axis=ax.copy()).fit(X).configuration()
+        m = cls(planar_axis=ax)
+        _mutate(ax)
+        assert m.fit(X).configuration() == want   # (once: fitted about the caller's changed axis)
+
+
+# -- 8. OnlineEstimator is a scikit-learn estimator (clone, get_params/set_params, repr)
+
+
+def test_online_estimator_is_a_scikit_learn_estimator():
+    from sklearn.base import clone
+
+    est = OnlineEstimator()
+    assert repr(est) == "OnlineEstimator()"
+    assert est.get_params()["models"] == ("static", "prismatic", "revolute")
+    given = dict(models=("prismatic", "revolute"), order=3.0, dim=np.int64(3), min_samples=8.0,
+                 radius_range=[0.1, 2], threshold=0.8, nu=None)
+    est = OnlineEstimator(**given)
+    params = est.get_params()
+    assert all(params[k] is v for k, v in given.items())    # stored as given, unconverted
+    assert "order=3.0" in repr(est) and "threshold=0.8" in repr(est) and "confirm_static" not in repr(est)
+    fresh = clone(est)                                       # (sklearn checks that each is stored as given)
+    assert fresh.get_params() == params and type(fresh.order) is float and type(fresh.radius_range) is list
+    X = _arc3()
+    for z in X:
+        est.update(z)
+    fresh = clone(est)                                       # a fresh estimator of the same parameters
+    assert fresh.X.shape == (0, 3) and fresh.get_params() == est.get_params()
+    for z in X:
+        fresh.update(z)
+    assert fresh.result().to_dict() == est.result().to_dict()
+    want = OnlineEstimator(models="prismatic", order=3)
+    other = OnlineEstimator().set_params(models="prismatic", order=3)
+    assert repr(other) == repr(want) and other.names == ["prismatic"]
+    for z in X:
+        want.update(z)
+        other.update(z)
+    assert other.result().to_dict() == want.result().to_dict()
+
+
+def test_online_estimator_set_params_checks_as_the_constructor_does():
+    est = OnlineEstimator(order=3)
+    with pytest.raises(InputError, match="order must be a whole number"):
+        est.set_params(order=0)
+    with pytest.raises(InputError, match="models must name"):
+        est.set_params(models=("static", "hinge"))
+    assert est.order == 3 and est.names == ["static", "prismatic", "revolute"]   # untouched
+    with pytest.raises(ValueError, match="speed"):
+        est.set_params(speed=2)
+    est.update([0.0, 0.0, 0.0])
+    with pytest.raises(InputError, match="before the first update"):
+        est.set_params(order=2)                              # its samples were scored with order 3

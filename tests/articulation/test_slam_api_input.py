@@ -200,3 +200,19 @@ def test_a_landmark_on_the_path_gives_positive_ranges_the_filters_take():
 
     for backend in ("ekf", "articulated"):
         assert np.isfinite(run_slam(sim, backend)["poses"]).all()
+
+
+# -- 4. whole-number floats are the counts they are: n_max=5.0 passed the check, then NumPy refused
+#    "13.0" as an array size; iSAM2 refused relinearize_skip=10.0 with a pybind11 TypeError
+@pytest.mark.parametrize("kind", BACKENDS)
+def test_whole_number_floats_are_taken_as_integers(kind):
+    sim = simulate(make_world(12, 1, 1), 40)
+    ints = {"n_max": 12, "min_samples": 7} | ({"relinearize_skip": 10} if kind == "graph" else {})
+    runs = []
+    for kw in (ints, {k: float(v) for k, v in ints.items()}, {k: np.int64(v) for k, v in ints.items()}):
+        f = _backend(kind, x0=sim["poses"][0], dt=sim["dt"], **kw)
+        for k, u in enumerate(sim["controls"]):
+            f.predict(u)
+            f.update(*sim["observations"][k])
+        runs.append(_state(f))
+    assert runs[1] == runs[0] and runs[2] == runs[0]

@@ -58,9 +58,16 @@ def as_points3(X) -> tuple[np.ndarray, int]:
 
 
 def _unit(v) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
+    """``v`` scaled to unit length (a zero vector as it is), always a new array."""
+    v = np.array(v, dtype=float)
     n = np.linalg.norm(v)
     return v / n if n > 0 else v
+
+
+def _given(value, name: str) -> np.ndarray | None:
+    """An array given to a model's constructor as a float array of its own (a copy: the caller's
+    array may change afterwards), or None."""
+    return None if value is None else float_array(value, name).copy()
 
 
 def _cross3(a, b) -> np.ndarray:
@@ -242,7 +249,8 @@ def fit_circle_joint(t: np.ndarray, P: np.ndarray, theta0: float | None = None, 
 
 
 class PointModel:
-    """Base class: ``fit`` sets the configuration from an ``(n, 3)`` array of points."""
+    """Base class: ``fit`` sets the configuration from an ``(n, 3)`` array of points, or the
+    constructor takes it as given (copies of the arrays: the caller's may change afterwards)."""
 
     name = "base"
     dof = 0
@@ -370,7 +378,7 @@ class StaticModel(PointModel):
     dims = (2, 3)
 
     def __init__(self, centre=None):
-        self.centre = None if centre is None else np.asarray(centre, dtype=float)
+        self.centre = _given(centre, "centre")
 
     def fit(self, X, weights=None):
         X, weights = self._fit_input(X, weights)
@@ -404,8 +412,8 @@ class PrismaticModel(PointModel):
     dims = (2, 3)
 
     def __init__(self, origin=None, direction=None):
-        self.origin = None if origin is None else np.asarray(origin, dtype=float)
-        self.direction = None if direction is None else _unit(direction)
+        self.origin = _given(origin, "origin")
+        self.direction = None if direction is None else _unit(_given(direction, "direction"))
 
     def fit(self, X, weights=None):
         X, weights = self._fit_input(X, weights)
@@ -466,11 +474,11 @@ class RevoluteModel(PointModel):
     require_circle = True
 
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
-        self.centre = None if centre is None else np.asarray(centre, dtype=float)
-        self.axis = None if axis is None else _unit(axis)
+        self.centre = _given(centre, "centre")
+        self.axis = None if axis is None else _unit(_given(axis, "axis"))
         self.radius = radius
-        self.u = None if u is None else _unit(u)
-        self.planar_axis = planar_axis  # fixed plane normal (2-D data), or None to estimate
+        self.u = None if u is None else _unit(_given(u, "u"))
+        self.planar_axis = _given(planar_axis, "planar_axis")  # fixed plane normal (2-D data), or None to estimate
 
     @property
     def v(self):
@@ -562,9 +570,9 @@ class PlanarModel(PointModel):
     min_points = 3
 
     def __init__(self, origin=None, normal=None, planar_axis=None):
-        self.origin = None if origin is None else np.asarray(origin, dtype=float)
-        self.normal = None if normal is None else _unit(normal)
-        self.planar_axis = planar_axis
+        self.origin = _given(origin, "origin")
+        self.normal = None if normal is None else _unit(_given(normal, "normal"))
+        self.planar_axis = _given(planar_axis, "planar_axis")
         if self.normal is not None:
             self.u, self.v = _orthonormal_to(self.normal)
 

@@ -67,6 +67,7 @@ import numpy as np
 from artmotion.articulation.models import MAX_COORD, POINT_MODELS, as_points3, make_model
 from artmotion.errors import InputError, check_range, float_array
 from artmotion.filters import taylor_model, taylor_transition
+from artmotion.params import Params
 
 __all__ = ["OnlineEstimator", "OnlineResult", "autocorrelation_time", "curvature_occam", "estimate_online", "robust_scale"]
 
@@ -450,7 +451,7 @@ class OnlineResult:
         }
 
 
-class OnlineEstimator:
+class OnlineEstimator(Params):
     """Algorithm 1, one observation at a time: ``est.update(z, t)``; ``est.probabilities``.
 
     ``models``: candidate point models; ``threshold``: tau; ``order``: Taylor order n of the
@@ -468,6 +469,11 @@ class OnlineEstimator:
     both ends of ``radius_range`` in ``[MIN_SCALE, MAX_SCALE]`` (1e-100 to 1e100); with ``dim=2``
     observations lie in ``z = 0``. Scores that still overflow (a noise far below the data's scale)
     raise an :class:`InputError` instead of giving undefined probabilities.
+
+    scikit-learn's parameter protocol (:class:`~artmotion.params.Params`, without importing
+    scikit-learn): the parameters are kept as given (``get_params``, ``sklearn.base.clone``, the
+    repr; ``order=3.0`` is order 3), :meth:`set_params` checks them as the constructor does, before
+    the first update; ``names`` lists the candidate models.
     """
 
     def __init__(
@@ -488,17 +494,24 @@ class OnlineEstimator:
         confirm_static: bool = True,
         hold: bool = True,
     ):
+        # every check comes before any attribute is set: a refused value leaves the estimator as it
+        # was (``set_params``); the whole numbers resolved here build the state, the parameters are
+        # kept as given (scikit-learn's convention: ``get_params``, ``clone`` and the repr show them)
         check_range("min_samples", min_samples, 3, 10**9, integer=True)
         check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("refit_growth", refit_growth, 1.0, 1e6, lo_open=True)
         check_range("temperature", temperature, 0.0, 1e3, lo_open=True)
-        models = [models] if isinstance(models, str) else list(models)
-        if not models or any(not isinstance(m, str) or m not in POINT_MODELS for m in models) \
-                or len(set(models)) != len(models):
+        try:
+            names = [models] if isinstance(models, str) else list(models)
+        except TypeError:
+            names = []
+        if not names or any(not isinstance(m, str) or m not in POINT_MODELS for m in names) \
+                or len(set(names)) != len(names):
             raise InputError(f"models must name some of {', '.join(POINT_MODELS)} (each once), got {models!r}")
         check_range("order", order, 1, MAX_ORDER, integer=True)
-        if dim not in (2, 3) or isinstance(dim, bool):
+        if isinstance(dim, bool) or not isinstance(dim, (int, float, np.number)) or dim not in (2, 3):
             raise InputError(f"dim must be 2 or 3, got {dim!r}")
+        d = int(dim)
         if noise is not None:
             check_range("noise", noise, MIN_SCALE, MAX_SCALE)
         check_range("noise_floor", noise_floor, 0.0, MAX_SCALE)
@@ -512,7 +525,7 @@ class OnlineEstimator:
             raise InputError(f"radius_range must be (low, high), two numbers with 0 < low < high, got {radius_range!r}") from None
         check_range("radius_range's low end", lo, MIN_SCALE, MAX_SCALE)
         check_range("radius_range's high end", hi, lo, MAX_SCALE, lo_open=True)
-        self.names = list(models)
+        self.models = models
         self.threshold = threshold
         self.min_samples = min_samples
         self.order = order
@@ -521,8 +534,13 @@ class OnlineEstimator:
         self.accel = accel
         self.dim = dim
         self.refit = refit
+        self.refit_growth = refit_growth
         self.nu = nu
         self.temperature = temperature
+        self.radius_range = radius_range
+        self.confirm_static = confirm_static
+        self.hold = hold
+        self.names = names  # the candidate models' names, in order
         self._Xbuf = np.empty((64, 3))  # samples in a growing array (doubling): no list -> array copies
         self._Tbuf = np.empty(64)
         self._n = 0
@@ -531,27 +549,59 @@ class OnlineEstimator:
         # reference model's: the line's when it is a candidate; see ``loglik``)
         self._geo = np.zeros(len(self.names))
         self._along = np.zeros(len(self.names))
-        one = [j for j, n in enumerate(self.names) if make_model(n, dim).dof == 1]
+        one = [j for j, n in enumerate(self.names) if make_model(n, d).dof == 1]
         self._ref = (self.names.index("prismatic") if "prismatic" in self.names else one[0]) if one else None
         self._shares = np.array([j in one for j in range(len(self.names))])
         self.history: list = []
         self.first_decision: tuple[str, int] | None = None
         self.decisions: list = []  # decided model (or None) per sample
         self._above: tuple[int, int] | None = None  # (model index, first sample) of the current run above tau
-        self.confirm_static = confirm_static
-        self.hold = hold
         self._next_refit = 0
-        self.refit_growth = refit_growth
         self._last_fit = 0
         self.tau = 1.0  # autocorrelation time of the residuals (see ``_autocorrelation``)
         self._static = self.names.index("static") if "static" in self.names else None
         # parameters each model's score is charged ``1/2 log n`` for: configuration, observation
         # noise and (when it moves and the acceleration is estimated) its process noise; a circle is
         # charged as a line, its curvature by its Occam factor (``_curvature_occam``)
-        self._charge = np.array([make_model("prismatic" if n == "revolute" else n, dim).n_params[dim]
+        self._charge = np.array([make_model("prismatic" if n == "revolute" else n, d).n_params[d]
                                  + (noise is None) + (accel is None and n != "static") for n in self.names], dtype=float)
         self._occam = np.zeros(len(self.names))
-        self.radius_range = (float(lo), float(hi))
+
+    def set_params(self, **params) -> OnlineEstimator:
+        """scikit-learn's ``set_params``: the parameters checked as the constructor checks them (a
+        refused one leaves the estimator as it was), and the estimator set up anew from them. Only
+        before the first :meth:`update`: the samples seen were scored under the old parameters
+        (``clone(est).set_params(...)`` gives a fresh estimator)."""
+        if self._n:
+            raise InputError(f"set_params: parameters are set before the first update, and this estimator has seen "
+                             f"{self._n} sample{'s' if self._n != 1 else ''} (clone(est).set_params(...) gives a "
+                             "fresh one)")
+        known = self.get_params(deep=False)
+        unknown = sorted(set(params) - set(known))
+        if unknown:
+            raise InputError(f"set_params: {', '.join(map(repr, unknown))} is not a parameter of "
+                             f"{type(self).__name__} (its parameters: {', '.join(sorted(known))})")
+        OnlineEstimator.__init__(self, **{**known, **params})
+        return self
+
+    # -- the parameters as the algorithm uses them (given as a whole float such as ``3.0``, a count
+    #    is the int it is; the radius range as floats)
+    @property
+    def _dim(self) -> int:
+        return int(self.dim)
+
+    @property
+    def _order(self) -> int:
+        return int(self.order)
+
+    @property
+    def _min_samples(self) -> int:
+        return int(self.min_samples)
+
+    @property
+    def _radius_range(self) -> tuple[float, float]:
+        lo, hi = self.radius_range
+        return float(lo), float(hi)
 
     # -- helpers
     @property
@@ -678,7 +728,7 @@ class OnlineEstimator:
             return 0.05 * sigma / dt**2
         dd = np.ascontiguousarray((X[2:] - 2.0 * X[1:-1] + X[:-2]).T)
         var = float(np.sum((1.4826 * _median_rows(np.abs(dd - _median_rows(dd)[:, None]))) ** 2))
-        return math.sqrt(max(2.0 * (var - 6.0 * self.dim * sigma**2), (0.05 * sigma) ** 2)) / dt**2
+        return math.sqrt(max(2.0 * (var - 6.0 * self._dim * sigma**2), (0.05 * sigma) ** 2)) / dt**2
 
     def _curvature_occam(self, j: int) -> float:
         """Log Occam factor of circle ``j``'s curvature over the line it bends.
@@ -702,7 +752,7 @@ class OnlineEstimator:
         khat = 1.0 / max(f.model.radius, 1e-300)
         gain = self.weight * (self._geo[j] - self._geo[self._ref])
         if gain > 1e-12:
-            return curvature_occam(khat, khat / math.sqrt(2.0 * gain), self.radius_range, self.dim - 1)
+            return curvature_occam(khat, khat / math.sqrt(2.0 * gain), self._radius_range, self._dim - 1)
         # no circle fits better than the line: the likelihood peaks at k = 0 with the width that the
         # residuals' sensitivity to k gives, c^2 the mean square of s^2 / 2 (s: position along the
         # line) after its best fit by a line
@@ -717,16 +767,16 @@ class OnlineEstimator:
         res = b - A @ np.linalg.lstsq(A, b, rcond=None)[0]
         c2 = float(res @ res) / len(u) * L**4
         sk = line.sigma / math.sqrt(max(self.weight * self._n, 1.0) * max(c2, 1e-300))
-        return curvature_occam(0.0, sk, self.radius_range, self.dim - 1)
+        return curvature_occam(0.0, sk, self._radius_range, self._dim - 1)
 
     def _autocorrelation(self) -> float:
         """``tau`` of the residuals of the richest moving model (the circle, if a candidate): like the
         noise level of an F-test, the noise's correlation is measured where no structure is left
         (were the simpler model true, the richer one's residuals would be its noise too)."""
         assert self.filters is not None
-        moving = sorted((f for f in self.filters if f.dof), key=lambda f: f.model.n_params[self.dim])
+        moving = sorted((f for f in self.filters if f.dof), key=lambda f: f.model.n_params[self._dim])
         f = moving[-1] if moving else self.filters[0]
-        return autocorrelation_time(f.residuals[:, : self.dim])
+        return autocorrelation_time(f.residuals[:, : self._dim])
 
     def _floor(self, X: np.ndarray) -> float:
         """Least noise std: ``noise_floor``; the rounding of positions written with few decimals
@@ -745,7 +795,7 @@ class OnlineEstimator:
         floor = self._floor(X)
         dt = float(np.median(np.diff(T))) if len(T) > 1 else 1.0
         if self.filters is None:
-            self.filters = [_ModelFilter(make_model(n, self.dim), self.order, self.nu, self.dim) for n in self.names]
+            self.filters = [_ModelFilter(make_model(n, self._dim), self._order, self.nu, self._dim) for n in self.names]
             for f in self.filters:
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
                 # a circle through points on a line (or at one point) is scored, and loses, not refused
@@ -781,7 +831,7 @@ class OnlineEstimator:
             raise InputError(f"an observation must be a 2-D or 3-D point, got {z.shape[0]} values")
         if not (abs(z[0]) <= MAX_COORD and abs(z[1]) <= MAX_COORD and abs(z[2]) <= MAX_COORD):
             raise InputError(f"an observation must be finite coordinates of magnitude at most {MAX_COORD:g}, got {z.tolist()}")
-        if self.dim == 2 and z[2] != 0.0:
+        if self._dim == 2 and z[2] != 0.0:
             raise InputError(f"with dim=2 an observation is a 2-D point (or one with z = 0), got z = {z[2]:g}")
         k = self._n
         if t is None:
@@ -804,7 +854,7 @@ class OnlineEstimator:
         self._Xbuf[k] = z
         self._Tbuf[k] = t
         self._n = k + 1
-        if k + 1 < self.min_samples:
+        if k + 1 < self._min_samples:
             self.history.append(np.full(len(self.names), np.nan))
             self.decisions.append(None)
             return {}
@@ -831,9 +881,11 @@ class OnlineEstimator:
         return dict(zip(self.names, p))
 
     def result(self, horizon: int = 5) -> OnlineResult:
+        """What Algorithm 1 found so far, with the ``horizon`` samples it predicts next (a whole number >= 0)."""
+        horizon = check_range("horizon", horizon, 0, 10**6, integer=True)
         n = self._n
         hist = np.array(self.history) if self.history else np.zeros((0, len(self.names)))
-        dim = self.dim
+        dim = self._dim
         if self.filters is None:
             return OnlineResult(None, {m: 1.0 / len(self.names) for m in self.names}, None, None, hist,
                                 self.names, {}, np.zeros((n, 0)), np.zeros((0, dim)), self.sigma, n, dim)

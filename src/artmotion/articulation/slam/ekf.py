@@ -140,12 +140,13 @@ def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
 
 
 def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulated, threshold, min_samples,
-                     point_noise, max_radius, motion_var, accel, gate, undecided_var=0.0) -> tuple[np.ndarray, tuple]:
+                     point_noise, max_radius, motion_var, accel, gate, undecided_var=0.0) -> tuple[np.ndarray, tuple, int, int]:
     """The arguments :class:`EKFSlam` and :class:`~artmotion.articulation.slam.graph.GraphSlam`
-    share, checked before anything is built: ``x0`` as a float array ``(3,)`` and ``alphas`` as 4
-    floats; else an :class:`InputError` that names the argument. With ``articulated``, also those
+    share, checked before anything is built: ``x0`` as a float array ``(3,)``, ``alphas`` as 4
+    floats, ``n_max`` and ``min_samples`` as ints (a whole float such as ``5.0`` is the count it
+    is); else an :class:`InputError` that names the argument. With ``articulated``, also those
     of Algorithm 1 (:class:`~artmotion.articulation.online.OnlineEstimator` checked them only at a
-    landmark's first sighting, under its own names)."""
+    landmark's first sighting, under its own names; without, ``min_samples`` is passed on as given)."""
     x = float_array(x0, "x0")
     if x.shape != (3,) or not np.isfinite(x).all():
         raise InputError(f"x0 must be 3 finite numbers (x, y, theta), got {reprlib.repr(x0)}")
@@ -155,19 +156,19 @@ def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulat
         raise InputError(f"alphas must be 4 finite numbers >= 0 (the control noise of Eq. 4.23), got {reprlib.repr(alphas)}")
     check_range("range_std", range_std, 0.0, math.inf, lo_open=True, hi_open=True)
     check_range("bearing_std", bearing_std, 0.0, math.inf, lo_open=True, hi_open=True)
-    check_range("n_max", n_max, 0, 10**6, integer=True)
+    n_max = check_range("n_max", n_max, 0, 10**6, integer=True)
     check_range("motion_var", motion_var, 0.0, math.inf, hi_open=True)
     check_range("undecided_var", undecided_var, 0.0, math.inf, hi_open=True)
     check_range("gate", gate, 0.0, 1.0, lo_open=True, hi_open=True)
     if articulated:
         # as OnlineEstimator (Algorithm 1) requires them
         check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
-        check_range("min_samples", min_samples, 3, 10**9, integer=True)
+        min_samples = check_range("min_samples", min_samples, 3, 10**9, integer=True)
         check_range("point_noise", point_noise, 0.0, math.inf, hi_open=True)
         check_range("max_radius", max_radius, MIN_RADIUS, math.inf, lo_open=True, hi_open=True)
         if accel is not None:
             check_range("accel", accel, 0.0, math.inf, hi_open=True)
-    return x, tuple(float(v) for v in a)
+    return x, tuple(float(v) for v in a), n_max, min_samples
 
 
 # ---------------------------------------------------------------- the filter
@@ -236,10 +237,10 @@ class EKFSlam:
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
                  undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01,
                  joint_shape: bool = True, joint_curve: bool = True):
-        x0, alphas = _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated,
-                                      threshold=threshold, min_samples=min_samples, point_noise=point_noise,
-                                      max_radius=max_radius, motion_var=motion_var, accel=accel, gate=gate,
-                                      undecided_var=undecided_var)
+        x0, alphas, n_max, min_samples = _check_arguments(
+            x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated, threshold=threshold,
+            min_samples=min_samples, point_noise=point_noise, max_radius=max_radius, motion_var=motion_var,
+            accel=accel, gate=gate, undecided_var=undecided_var)
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])

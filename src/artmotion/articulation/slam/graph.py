@@ -162,14 +162,15 @@ class GraphSlam:
                  accel: float | None = 0.1, gating: bool = True, history: bool = False,
                  joint_noise: float | None = None, relinearize_threshold: float = 0.1, relinearize_skip: int = 10,
                  gate: float = 0.01):
-        x0, alphas = _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated,
-                                      threshold=threshold, min_samples=min_samples, point_noise=point_noise,
-                                      max_radius=max_radius, motion_var=motion_var, accel=accel, gate=gate)
+        x0, alphas, n_max, min_samples = _check_arguments(
+            x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated, threshold=threshold,
+            min_samples=min_samples, point_noise=point_noise, max_radius=max_radius, motion_var=motion_var,
+            accel=accel, gate=gate)
         if joint_noise is not None:
             check_range("joint_noise", joint_noise, 0.0, math.inf, hi_open=True)
         check_range("relinearize_threshold", relinearize_threshold, 0.0, math.inf, hi_open=True)
         # (0 divides by zero inside iSAM2: the process dies of SIGFPE)
-        check_range("relinearize_skip", relinearize_skip, 1, 10**9, integer=True)
+        relinearize_skip = check_range("relinearize_skip", relinearize_skip, 1, 10**9, integer=True)
         gtsam = _gtsam()
         self._gtsam: Any = gtsam
         self.dt, self.alphas = dt, alphas

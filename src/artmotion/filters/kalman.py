@@ -16,15 +16,64 @@ from artmotion.errors import InputError, float_array
 _LOG2PI = math.log(2.0 * math.pi)
 
 
-def _matrix(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a float array of ``shape`` with finite entries, else an :class:`InputError`."""
-    a = float_array(value, f"Kalman filter: {name}").copy()
-    if a.shape != shape:
-        raise InputError(f"Kalman filter: {name} must have shape {shape}"
-                         f"{' for a state of ' + str(shape[1]) if len(shape) == 2 else ''}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
+def _size_note(name: str, n: int) -> str:
+    """What sets the size of ``name``: the state's for ``P``, ``F``, ``Q``; the number of measured
+    values (the rows of ``H``) for ``R``."""
+    if name == "R":
+        return f"one row and column per measured value: H has {n} row{'s' if n != 1 else ''}"
+    return f"one row and column per entry of the state x, which holds {n}"
+
+
+def _shape_error(name: str, shape: tuple[int, int], got: tuple[int, ...]) -> InputError:
+    """The :class:`InputError` of a matrix ``name`` whose shape ``got`` is not ``shape``."""
+    return InputError(f"Kalman filter: {name} must have shape {shape}, got {got} ({_size_note(name, shape[0])})")
+
+
+def _flat(a: np.ndarray) -> np.ndarray | None:
+    """``a`` as a vector if it is one: ``n`` values, a column ``(n, 1)`` (filterpy's convention) or
+    a row ``(1, n)``; a number is one value. None if ``a`` is not a vector."""
+    if a.ndim == 1:
+        return a
+    if a.ndim == 0 or (a.ndim == 2 and 1 in a.shape):
+        return a.reshape(-1)
+    return None
+
+
+def _state(value) -> np.ndarray:
+    """The state ``x`` (given to the constructor or assigned): a copy as a vector of finite floats
+    (:func:`_flat`), else an :class:`InputError`."""
+    a = float_array(value, "Kalman filter: x")
+    x = _flat(a)
+    if x is None:
+        raise InputError(f"Kalman filter: x must be a vector (n values, or a column (n, 1) as in filterpy), "
+                         f"got shape {a.shape}")
+    if x.size == 0 or not np.all(np.isfinite(x)):
+        raise InputError("Kalman filter: x must be a non-empty state of finite numbers")
+    return x.copy()
+
+
+def _matrix(name: str, value, n: int | None, copy: bool = False) -> np.ndarray:
+    """``F`` (``n x n``) or ``H`` (``m x n``: a row per measured value; one row may be given as a
+    vector) as a float matrix of finite entries, else an :class:`InputError`. ``n`` None (an
+    assignment): any square ``F``, any ``H``; their sizes against the state's are checked at the
+    next step (:meth:`KalmanFilter._check_state`)."""
+    a = float_array(value, f"Kalman filter: {name}")
+    if name == "H":
+        if a.ndim < 2:
+            a = np.atleast_2d(a)
+        if a.ndim != 2 or 0 in a.shape or (n is not None and a.shape[1] != n):
+            raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {a.shape}"
+                             if n is not None else
+                             f"Kalman filter: H must be a matrix (m, n) (a row of n numbers per measured value), "
+                             f"got shape {a.shape}")
+    elif n is not None:
+        if a.shape != (n, n):
+            raise _shape_error(name, (n, n), a.shape)
+    elif a.ndim != 2 or a.shape[0] != a.shape[1] or a.shape[0] == 0:
+        raise InputError(f"Kalman filter: {name} must be a square matrix, got shape {a.shape}")
+    if not math.isfinite(a.sum()) and not np.isfinite(a).all():   # (one call when all is well)
         raise InputError(f"Kalman filter: {name} contains NaN or infinite values")
-    return a
+    return a.copy() if copy else a
 
 
 #: a covariance may differ from its transpose by this much, relative to its largest entry
@@ -80,32 +129,30 @@ def _covariance_problem(name: str, a: np.ndarray) -> None:
                          f"but its smallest eigenvalue is {low:.3g}")
 
 
-def _covariance(name: str, value, n: int) -> np.ndarray:
-    """An ``n x n`` covariance: finite, symmetric, positive semi-definite (:func:`_check_covariance`)."""
-    a = _matrix(name, value, (n, n))
-    _check_covariance(name, a)
-    return a
+def _covariance(name: str, value, n: int, any_size: bool = False, copy: bool = False) -> np.ndarray:
+    """``P``, ``Q`` (``n``: the size of the state) or ``R`` (``n``: the number of measured values)
+    as a covariance: an ``n x n`` float matrix, finite, symmetric and positive semi-definite
+    (:func:`_check_covariance`), or a number ``q`` (alone or in a list) for ``q`` times the identity,
+    as in filterpy; else an :class:`InputError`. With ``any_size`` (an assignment) a matrix may be
+    of any size, checked against the others' at the next step (:meth:`KalmanFilter._check_state`).
 
-
-def _override(name: str, value, shape: tuple[int, int], covariance: bool = False) -> np.ndarray:
-    """A matrix given to one :meth:`KalmanFilter.predict` or :meth:`~KalmanFilter.update`: a float
-    array of ``shape`` with finite entries (a covariance with ``covariance``: a number ``q`` stands
-    for ``q`` times the identity, as in filterpy), else an :class:`InputError`. Not copied."""
+    The one home of these rules: the constructor, the assignments and the matrices given to one
+    :meth:`~KalmanFilter.predict` or :meth:`~KalmanFilter.update` (not copied) all come here."""
     a = float_array(value, f"Kalman filter: {name}")
-    if covariance and a.ndim == 0:
-        q = float(a)
+    if a.ndim <= 1 and a.size == 1:
+        q = float(a.reshape(-1)[0])
         if not math.isfinite(q):
             raise InputError(f"Kalman filter: {name} must be a finite variance, got {q:g}")
         if q < 0.0:
             raise InputError(f"Kalman filter: {name} must be a non-negative variance, got {q:g}")
-        return q * np.eye(shape[0])
-    if a.shape != shape:
-        raise InputError(f"Kalman filter: {name} must have shape {shape}, got {a.shape}")
-    if covariance:
-        _check_covariance(name, a)
-    elif not math.isfinite(a.sum()) and not np.isfinite(a).all():   # (one call when all is well)
-        raise InputError(f"Kalman filter: {name} contains NaN or infinite values")
-    return a
+        return q * np.eye(n)
+    if not any_size:
+        if a.shape != (n, n):
+            raise _shape_error(name, (n, n), a.shape)
+    elif a.ndim != 2 or a.shape[0] != a.shape[1] or a.shape[0] == 0:
+        raise InputError(f"Kalman filter: {name} must be a square matrix (a covariance) or a number, got shape {a.shape}")
+    _check_covariance(name, a)
+    return a.copy() if copy else a
 
 
 def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
@@ -158,48 +205,111 @@ class KalmanFilter:
 
     After :meth:`update`, ``y`` is the innovation, ``S`` its covariance and ``log_likelihood``
     the log-density of the observation under the prediction.
+
+    ``x, P, F, Q, H, R`` are attributes as in filterpy: read them, change them in place, or assign
+    them. An assignment is checked and converted as the constructor checks and converts (a copy as
+    a float array; a number for ``P``, ``Q`` or ``R`` is that variance times the identity; a column
+    ``x`` is the state vector), else an :class:`InputError` naming the attribute. The sizes of the
+    attributes against one another are checked at the next step, so that a state of another size
+    can be assigned attribute by attribute (``x`` first: a number for ``P`` or ``Q`` takes its size).
     """
 
     def __init__(self, x, P, F, Q, H, R):
-        self.x = float_array(x, "Kalman filter: x").reshape(-1).copy()
-        n = len(self.x)
-        if n == 0 or not np.all(np.isfinite(self.x)):
-            raise InputError("Kalman filter: x must be a non-empty state of finite numbers")
-        self.P = _covariance("P", P, n)
-        self.F = _matrix("F", F, (n, n))
-        self.Q = _covariance("Q", Q, n)
-        H = np.atleast_2d(float_array(H, "Kalman filter: H"))
-        if H.ndim != 2 or H.shape[1] != n or H.shape[0] == 0:
-            raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {H.shape}")
-        self.H = _matrix("H", H, H.shape)
-        self.R = _covariance("R", np.atleast_2d(float_array(R, "Kalman filter: R")), H.shape[0])
-        self.y = np.zeros(self.H.shape[0])
-        self.S = np.eye(self.H.shape[0])
+        self._x = _state(x)
+        n = len(self._x)
+        self._P = _covariance("P", P, n, copy=True)
+        self._F = _matrix("F", F, n, copy=True)
+        self._Q = _covariance("Q", Q, n, copy=True)
+        self._H = _matrix("H", H, n, copy=True)
+        m = self._H.shape[0]
+        self._R = _covariance("R", R, m, copy=True)
+        self._fits = True  # the attributes' sizes fit one another (False after an assignment, until checked)
+        self.y = np.zeros(m)
+        self.S = np.eye(m)
         self.log_likelihood = 0.0
+
+    # -- filterpy's attributes: an assignment is checked and converted as the constructor does
+    def _assigned(self, name: str, value) -> np.ndarray:
+        """``value`` assigned to attribute ``name``, checked and converted (sizes: see the class doc)."""
+        if name == "x":
+            a = _state(value)
+        elif name in ("F", "H"):
+            a = _matrix(name, value, None, copy=True)
+        else:
+            a = _covariance(name, value, self._H.shape[0] if name == "R" else self._x.shape[0], any_size=True, copy=True)
+        self._fits = False
+        return a
+
+    @property
+    def x(self) -> np.ndarray:
+        """The state, ``(n,)``."""
+        return self._x
+
+    @x.setter
+    def x(self, value) -> None:
+        self._x = self._assigned("x", value)
+
+    @property
+    def P(self) -> np.ndarray:
+        """The state's covariance, ``(n, n)``."""
+        return self._P
+
+    @P.setter
+    def P(self, value) -> None:
+        self._P = self._assigned("P", value)
+
+    @property
+    def F(self) -> np.ndarray:
+        """The transition, ``(n, n)``."""
+        return self._F
+
+    @F.setter
+    def F(self, value) -> None:
+        self._F = self._assigned("F", value)
+
+    @property
+    def Q(self) -> np.ndarray:
+        """The process noise's covariance, ``(n, n)``."""
+        return self._Q
+
+    @Q.setter
+    def Q(self, value) -> None:
+        self._Q = self._assigned("Q", value)
+
+    @property
+    def H(self) -> np.ndarray:
+        """The measurement matrix, ``(m, n)``: a row per measured value."""
+        return self._H
+
+    @H.setter
+    def H(self, value) -> None:
+        self._H = self._assigned("H", value)
+
+    @property
+    def R(self) -> np.ndarray:
+        """The measurement noise's covariance, ``(m, m)``."""
+        return self._R
+
+    @R.setter
+    def R(self, value) -> None:
+        self._R = self._assigned("R", value)
 
     @property
     def dim_x(self) -> int:
-        return self.x.shape[0]
+        return self._x.shape[0]
 
     def predict(self, F=None, Q=None) -> np.ndarray:
         """``x = F x``, ``P = F P F^T + Q`` with the filter's ``F`` and ``Q`` or, for this step,
         the ones given (checked: ``F`` an ``n x n`` finite matrix, ``Q`` a covariance or a number
         ``q`` for ``q`` times the identity, as in filterpy)."""
-        n = self.dim_x
-        F = self.F if F is None else _override("F", F, (n, n))
-        Q = self.Q if Q is None else _override("Q", Q, (n, n), covariance=True)
-        try:
-            x = F @ self.x
-            P = F @ self.P @ F.T + Q
-            if P.shape != self.P.shape:
-                raise ValueError("shape")
-        except ValueError:
+        if not self._fits:
             self._check_state()
-            n = self.dim_x
-            raise InputError(f"Kalman filter: F and Q must have shape {(n, n)} for a state of {n}, "
-                             f"got {np.shape(F)} and {np.shape(Q)}") from None
-        self.x, self.P = x, P
-        return self.x
+        n = self._x.shape[0]
+        F = self._F if F is None else _matrix("F", F, n)
+        Q = self._Q if Q is None else _covariance("Q", Q, n)
+        self._x = F @ self._x
+        self._P = F @ self._P @ F.T + Q
+        return self._x
 
     def update(self, z, R=None, H=None) -> float:
         """Fuse measurement ``z``; ``R`` may vary per call (e.g. a GP's predicted variance, Eq. 3.7).
@@ -208,72 +318,59 @@ class KalmanFilter:
         """
         H, R, z = self._measurement(z, R, H)
         try:
-            y = z - H @ self.x
-            PHt = self.P @ H.T
+            y = z - H @ self._x
+            PHt = self._P @ H.T
             S = H @ PHt + R
             K = np.linalg.solve(S.T, PHt.T).T
             ll = gaussian_loglik(y, S)
         except (ValueError, np.linalg.LinAlgError) as e:
-            self._check_state()
             raise InputError("Kalman filter: the innovation covariance is not positive definite "
                              f"({getattr(e, 'reason', e)})") from None
         self.y, self.S = y, S
-        self.x = self.x + K @ self.y
+        self._x = self._x + K @ self.y
         I_KH = np.eye(self.dim_x) - K @ H
-        self.P = I_KH @ self.P @ I_KH.T + K @ R @ K.T  # Joseph form: stays symmetric positive
+        self._P = I_KH @ self._P @ I_KH.T + K @ R @ K.T  # Joseph form: stays symmetric positive
         self.log_likelihood = ll
         return self.log_likelihood
 
     def _measurement(self, z, R, H) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``H``, ``R`` and ``z`` of an update, checked against each other: ``z`` has one finite
-        value per row of ``H``, ``R`` that square and a covariance (a number ``r``: ``r`` times
-        the identity, as in filterpy), ``H`` finite."""
-        if H is None:
-            H = self.H
-        else:
-            H = np.atleast_2d(float_array(H, "Kalman filter: H"))
-            if H.ndim != 2 or H.shape[1] != self.dim_x or H.shape[0] == 0:
-                raise InputError(f"Kalman filter: H must have shape (m, {self.dim_x}) for a state of "
-                                 f"{self.dim_x}, got {H.shape}")
-            H = _override("H", H, H.shape)
+        value per row of ``H`` (a column as in filterpy, or a vector), ``R`` that square and a
+        covariance (a number ``r``: ``r`` times the identity, as in filterpy), ``H`` finite."""
+        if not self._fits:
+            self._check_state()
+        H = self._H if H is None else _matrix("H", H, self._x.shape[0])
         m = H.shape[0]
-        if R is None:
-            R = self.R
-        else:
-            R = float_array(R, "Kalman filter: R")
-            if R.ndim == 1:
-                R = R[None, :]       # [r] for one measured value
-            R = _override("R", R, (m, m), covariance=True)
-        z = np.atleast_1d(float_array(z, "Kalman filter: z"))
-        if z.shape != (m,):
+        if R is not None:
+            R = _covariance("R", R, m)
+        elif self._R.shape[0] == m:
+            R = self._R
+        else:           # an H of other rows than the filter's R has
+            raise InputError(f"{_shape_error('R', (m, m), self._R.shape)}: give R with H")
+        za = float_array(z, "Kalman filter: z")
+        zv = _flat(za)
+        if zv is None or zv.shape != (m,):
             raise InputError(f"Kalman filter: z must hold {m} value{'s' if m != 1 else ''} (the rows of H), "
-                             f"got shape {z.shape}")
-        if not np.all(np.isfinite(z)):
+                             f"got shape {za.shape}")
+        if not np.all(np.isfinite(zv)):
             raise InputError("Kalman filter: z contains NaN or infinite values")
-        return H, R, z
+        return H, R, zv
 
     def _check_state(self) -> None:
-        """An :class:`InputError` naming ``x``, ``P`` or ``R`` if one of them has a shape that does
-        not fit the others (they are attributes: a caller may have replaced them)."""
-        n = self.dim_x if self.x.ndim == 1 else -1
-        if n < 1:
-            raise InputError(f"Kalman filter: x must be a vector, got shape {self.x.shape}")
-        for name in ("P", "F", "Q"):
-            if np.shape(getattr(self, name)) != (n, n):
-                raise InputError(f"Kalman filter: {name} must have shape {(n, n)} for a state of {n}, "
-                                 f"got {np.shape(getattr(self, name))}")
-        if self.H.ndim != 2 or self.H.shape[1] != n:
-            raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {self.H.shape}")
-        m = self.H.shape[0]
-        if np.shape(self.R) != (m, m):
-            raise InputError(f"Kalman filter: R must have shape {(m, m)} for {m} measured value(s), got {np.shape(self.R)}")
+        """An :class:`InputError` naming ``P``, ``F``, ``Q``, ``H`` or ``R`` if its size does not fit
+        the state's (or ``H``'s, for ``R``): an assignment changed one of them."""
+        n = self._x.shape[0]
+        for name, a in (("P", self._P), ("F", self._F), ("Q", self._Q)):
+            if a.shape != (n, n):
+                raise _shape_error(name, (n, n), a.shape)
+        if self._H.shape[1] != n:
+            raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {self._H.shape}")
+        m = self._H.shape[0]
+        if self._R.shape != (m, m):
+            raise _shape_error("R", (m, m), self._R.shape)
+        self._fits = True
 
     def innovation(self, z, R=None, H=None) -> tuple[np.ndarray, np.ndarray]:
         """Innovation and its covariance for ``z`` without changing the state (for gating)."""
         H, R, z = self._measurement(z, R, H)
-        try:
-            y = z - H @ self.x
-            return y, H @ self.P @ H.T + R
-        except ValueError:
-            self._check_state()
-            raise
+        return z - H @ self._x, H @ self._P @ H.T + R

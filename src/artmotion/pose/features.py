@@ -13,13 +13,18 @@
 * **cnn** — the pixels of the resized crop (BGR, [0, 1]); the fitted model turns them into a
   learned feature (:mod:`artmotion.pose.cnn`), as it turns HOG into its principal components.
 
-``extract(images, kind)`` accepts a list of BGR/grey uint8 crops of any size.
+``extract(images, kind)`` accepts a list (or any iterable) of BGR or grey crops of any size:
+uint8 (0..255), uint16 (0..65535) or float intensities in [0, 1]; a grey crop may be
+``(H, W)`` or ``(H, W, 1)``, a BGRA crop's alpha is dropped. Other integer types (int64, ...) and
+float crops with values outside [0, 1] (0..255 as floats) are an :class:`InputError`: taken as
+they are, they read as far too bright and move the angles.
 ``box_views(boxes, frame_size)`` describes where each crop was cut from its frame.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+from collections.abc import Iterable, Sequence
 from functools import lru_cache
 
 import cv2
@@ -32,20 +37,51 @@ FEATURES = ("hog", "lbp", "cnn")
 _EPS = 1e-4
 
 
-def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H), blur: float = 0.0) -> np.ndarray:
+def crop_list(images):
+    """``images`` as :func:`extract` takes them: an array or a sequence (list, tuple) as it is,
+    any other iterable of crops (a generator, a map) made a list once; anything else an
+    :class:`InputError`."""
+    if isinstance(images, np.ndarray):
+        if images.ndim == 0:
+            raise InputError(f"expected a list of crops (images) or a feature matrix, got one number {images!r}")
+        return images
+    if isinstance(images, (str, bytes, os.PathLike)) or not isinstance(images, Iterable):
+        raise InputError(f"expected a list of crops (images) or a feature matrix, got {type(images).__name__} "
+                         f"{images!r:.60}")
+    return images if isinstance(images, Sequence) else list(images)
+
+
+def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H), blur: float = 0.0,
+                name: str = "a crop") -> np.ndarray:
     """Resize a crop (any size, grey or BGR) to ``size`` = (width, height), 3-channel float32 in [0, 1].
 
+    The crop's intensities: uint8 0..255, uint16 0..65535, floats 0..1; any other type, or a float
+    outside [0, 1], is an :class:`InputError` whose message begins with ``name``.
     ``blur`` > 0: Gaussian smoothing with that sigma (pixels of the resized crop) afterwards, which
     takes sensor noise out of the gradients before a feature sees them.
     """
     img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 1:  # grey with a channel axis
+        img = img[:, :, 0]
     if img.ndim == 2:
         img = img[:, :, None].repeat(3, axis=2)
     elif img.ndim == 3 and img.shape[2] == 4:
         img = img[:, :, :3]
     if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 2 or img.shape[1] < 2:
-        raise InputError(f"expected an image of at least 2x2 pixels, got shape {img.shape}")
-    scale = 1.0 / 255.0 if img.dtype == np.uint8 else (1.0 / 65535.0 if img.dtype == np.uint16 else 1.0)
+        raise InputError(f"{name}: expected a grey or BGR image of at least 2x2 pixels, got shape {np.shape(image)}")
+    if img.dtype == np.uint8:
+        scale = 1.0 / 255.0
+    elif img.dtype == np.uint16:
+        scale = 1.0 / 65535.0
+    elif img.dtype.kind == "f":  # intensities in [0, 1]
+        lo, hi = float(img.min()), float(img.max())
+        if not (lo >= 0.0 and hi <= 1.0):  # (NaN fails both)
+            raise InputError(f"{name} holds float values outside [0, 1] (from {lo:g} to {hi:g}): float crops are "
+                             f"intensities in [0, 1] (divide 0..255 values by 255, or give uint8 crops)")
+        scale = 1.0
+    else:
+        raise InputError(f"{name} is {img.dtype}: give uint8 crops (0..255), uint16 (0..65535) or floats in "
+                         f"[0, 1] (e.g. image.astype(np.uint8) for 0..255 values)")
     if img.dtype in (np.uint8, np.uint16, np.float32, np.float64):
         # halve big crops with the Gaussian pyramid first (anti-aliased, and much cheaper than one
         # area resize from the full size); stop while the crop is still at least the target size
@@ -206,20 +242,25 @@ def extract(
     cell: int | None = None,
     chunk: int = 256,
     blur: float = 0.0,
+    first: int = 0,
 ) -> np.ndarray:
     """Feature matrix ``(len(images), d)`` float32 of crops of any size (resized to ``size``,
-    smoothed with a Gaussian of sigma ``blur`` pixels when ``blur`` > 0)."""
+    smoothed with a Gaussian of sigma ``blur`` pixels when ``blur`` > 0); ``images`` a list, an
+    array or any iterable of crops (see the module's docstring for their types). A bad crop is an
+    :class:`InputError` naming its index (counted from ``first``)."""
     if kind not in FEATURES:
         raise InputError(f"unknown feature {kind!r}; choose one of {', '.join(FEATURES)}")
     cell = default_cell(kind) if cell is None else int(cell)
     if kind != "cnn" and (cell < 2 or size[0] // cell < 1 or size[1] // cell < 1):
         raise InputError(f"cell size {cell} does not fit a {size[0]}x{size[1]} crop")
+    images = crop_list(images)
     n = len(images)
     out = np.empty((n, feature_dim(kind, size, cell)), dtype=np.float32)
     fn = {"hog": hog_batch, "lbp": lbp_batch, "cnn": pixels_batch}[kind]
 
     def work(s):
-        batch = np.stack([resize_crop(im, size, blur) for im in images[s : s + chunk]])
+        batch = np.stack([resize_crop(im, size, blur, name=f"crop {first + s + j}")
+                          for j, im in enumerate(images[s : s + chunk])])
         out[s : s + len(batch)] = fn(batch, cell)
 
     starts = list(range(0, n, chunk))

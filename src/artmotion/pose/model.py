@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import numbers
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from sklearn.base import BaseEstimator
 
 from artmotion.errors import InputError, check_range, check_seed, need_package
 from artmotion.io import atomic_path
@@ -98,17 +98,31 @@ def calibration_order(n: int, groups=None) -> tuple[np.ndarray, int, np.ndarray]
     return np.concatenate([np.flatnonzero(~held), np.flatnonzero(held)]), int(held.sum()), frames
 
 
-def _whole(value):
-    """``value`` as an int when it is a whole real number (not a bool), else as it is."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        return value
-    if isinstance(value, numbers.Integral):
-        return int(value)
-    v = float(value)
-    return int(v) if v.is_integer() else value
+#: the choices of :class:`PoseRegressor`'s ``method``
+METHODS = ("auto", "exact", "sparse")
 
 
-class PoseRegressor:
+class _Params(NamedTuple):
+    """:class:`PoseRegressor`'s numeric parameters as :meth:`PoseRegressor.fit` uses them: checked,
+    defaults resolved, whole numbers as ``int`` (the estimator keeps them as given)."""
+
+    cell: int
+    size: tuple[int, int]
+    blur: float
+    n_components: int | None
+    max_exact: int
+    neighbours: int | None
+    n_inducing: int
+    n_inducing_var: int | None
+    n_opt: int
+    restarts: int
+    seed: int
+    net_steps: int
+    opening_weight: float
+    net_beta: float
+
+
+class PoseRegressor(BaseEstimator):
     """Joint angles from a tool crop: HOG/LBP/learned features + one GP per angle (scikit-learn style).
 
     Parameters: ``feature`` (``"hog"``, ``"lbp"`` or ``"cnn"``: a small network trained in
@@ -135,7 +149,29 @@ class PoseRegressor:
     variance 16× cheaper at 250 of 1000; ``None``: all of them), ``n_opt`` (subset used for
     hyper-parameter optimisation), ``restarts``, ``seed``, ``progress`` (tqdm bars), ``inducing``
     (``"kmeans"`` or ``"random"`` choice of the sparse GP's inducing inputs).
+
+    A scikit-learn estimator: the parameters are kept as given (``get_params``, ``set_params``,
+    ``sklearn.base.clone``) and checked, resolved (``None`` defaults) and taken as whole numbers
+    where they are used (:meth:`fit`, :meth:`features`, :meth:`save`); only ``feature``,
+    ``method`` and ``net_mean`` are also checked when the model is made, so that a command line
+    refuses a misspelt name before it reads any image. The fitted state ends in ``_``.
     """
+
+    # the fitted state, None until fit or load (class attributes: scikit-learn's check_is_fitted
+    # looks for instance attributes ending in "_")
+    net_: Any = None  # artmotion.pose.cnn.CropNet once a cnn model is fitted
+    #: angles whose mean is the network's read-out, and its scale back to degrees (``cnn``)
+    readout_: np.ndarray | None = None
+    net_mu_: np.ndarray | None = None
+    net_sd_: np.ndarray | None = None
+    names_: list[str] | None = None
+    gp_: ExactGP | SparseGP | None = None
+    accel_var_: np.ndarray | None = None
+    #: multipliers of the filter's and the smoother's standard deviations (:func:`tune_filter`)
+    filter_std_: np.ndarray | None = None
+    smooth_std_: np.ndarray | None = None
+    pca_mean_: np.ndarray | None = None
+    pca_components_: np.ndarray | None = None
 
     def __init__(self, feature: str = "hog", cell: int | None = None, size: tuple[int, int] = (F.CROP_W, F.CROP_H),
                  blur: float | None = None, n_components: int | None = 128, method: str = "auto", max_exact: int = 6000,
@@ -143,31 +179,18 @@ class PoseRegressor:
                  seed: int = 0, progress: bool = False, inducing: str = "kmeans", net_steps: int = 3000,
                  augment: bool = True, opening_weight: float = 3.0, net_mean: str = "opening",
                  n_inducing_var: int | None = 250, net_beta: float = 0.05):
-        if feature not in F.FEATURES:
-            raise InputError(f"unknown feature {feature!r}; choose one of {', '.join(F.FEATURES)}")
-        if method not in ("auto", "exact", "sparse"):
-            raise InputError(f"unknown method {method!r}; choose auto, exact or sparse")
-        if net_mean not in NET_MEANS:
-            raise InputError(f"unknown net_mean {net_mean!r}; choose {', '.join(NET_MEANS)}")
+        # the names only, and nothing stored but the parameters as given (scikit-learn: ``clone``
+        # makes the model anew from ``get_params``); the numbers are checked by fit (_params)
+        _check_choices(feature=feature, method=method, net_mean=net_mean)
         self.feature = feature
-        # whole numbers become ints; anything else is kept as given, for fit to refuse by name
-        # (``_check_params``: scikit-learn checks in ``fit``) instead of int() cutting or failing here
-        self.cell: Any = F.default_cell(feature) if cell is None else _whole(cell)
-        self.size: Any = (tuple(_whole(v) for v in size)
-                          if isinstance(size, (tuple, list, np.ndarray)) and len(size) == 2 else size)
-        # the network learns its own blur (augmentation); HOG and LBP need one against sensor noise
-        self.blur: Any = ((0.0 if feature == "cnn" else 0.7) if blur is None
-                          else float(blur) if isinstance(blur, numbers.Real) and not isinstance(blur, bool) else blur)
+        self.cell = cell
+        self.size = size
+        self.blur = blur
         self.net_steps = net_steps
         self.augment = augment
         self.opening_weight = opening_weight
         self.net_beta = net_beta
         self.net_mean = net_mean
-        self.net_: Any = None  # artmotion.pose.cnn.CropNet once a cnn model is fitted
-        #: angles whose mean is the network's read-out, and its scale back to degrees (``cnn``)
-        self.readout_: np.ndarray | None = None
-        self.net_mu_: np.ndarray | None = None
-        self.net_sd_: np.ndarray | None = None
         self.n_components = n_components
         self.method = method
         self.max_exact = max_exact
@@ -179,53 +202,65 @@ class PoseRegressor:
         self.seed = seed
         self.progress = progress
         self.inducing = inducing
-        self.names_: list[str] | None = None
-        self.gp_: ExactGP | SparseGP | None = None
-        self.accel_var_: np.ndarray | None = None
-        #: multipliers of the filter's and the smoother's standard deviations (:func:`tune_filter`)
-        self.filter_std_: np.ndarray | None = None
-        self.smooth_std_: np.ndarray | None = None
-        self.pca_mean_: np.ndarray | None = None
-        self.pca_components_: np.ndarray | None = None
 
-    def _check_params(self) -> None:
-        """The parameters checked, as :meth:`fit` needs them (scikit-learn checks in ``fit``, not in
-        ``__init__``: a parameter may be set after the model is made); the ranges are those
-        :meth:`load` accepts in a model file."""
-        for name, choice, choices in (("feature", self.feature, F.FEATURES), ("method", self.method, ("auto", "exact", "sparse")),
-                                      ("inducing", self.inducing, ("kmeans", "random")), ("net_mean", self.net_mean, NET_MEANS)):
-            if choice not in choices:
-                raise InputError(f"unknown {name} {choice!r}; choose one of {', '.join(choices)}")
-        self._check_crop_params()
+    def __sklearn_is_fitted__(self) -> bool:
+        return self.gp_ is not None
+
+    def _params(self) -> _Params:
+        """The parameters checked and resolved, as :meth:`fit` uses them (scikit-learn checks in
+        ``fit``, not in ``__init__``: a parameter may be set after the model is made); the ranges
+        are those :meth:`load` accepts in a model file. The model's own parameters are left as given."""
+        _check_choices(feature=self.feature, method=self.method, inducing=self.inducing, net_mean=self.net_mean)
+        cell, size, blur = self._crop_params()
+
+        def count(name: str, lo: int) -> int:
+            return check_range(name, getattr(self, name), lo, _MAX_COUNT, integer=True)
+
+        def optional(name: str) -> int | None:  # None: the raw feature, the exact variance, all inducing inputs
+            return None if getattr(self, name) is None else count(name, 1)
+
         # (one hyper-parameter optimisation row gives NaN hyper-parameters: n_opt at least 2)
-        for name, value, lo in (("max_exact", self.max_exact, 0), ("n_inducing", self.n_inducing, 1),
-                                ("n_opt", self.n_opt, 2), ("restarts", self.restarts, 0), ("net_steps", self.net_steps, 1)):
-            check_range(name, value, lo, _MAX_COUNT, integer=True)
-        for name, optional in (("n_components", self.n_components), ("neighbours", self.neighbours),
-                               ("n_inducing_var", self.n_inducing_var)):
-            if optional is not None:  # None: the raw feature, the exact variance, all inducing inputs
-                check_range(name, optional, 1, _MAX_COUNT, integer=True)
-        check_seed(self.seed, "seed")
-        check_range("opening_weight", self.opening_weight, 0.0, 1e6)
-        check_range("net_beta", self.net_beta, 0.0, 1e6)
+        return _Params(cell=cell, size=size, blur=blur, n_components=optional("n_components"),
+                       max_exact=count("max_exact", 0), neighbours=optional("neighbours"), n_inducing=count("n_inducing", 1),
+                       n_inducing_var=optional("n_inducing_var"), n_opt=count("n_opt", 2), restarts=count("restarts", 0),
+                       seed=_seed(self.seed), net_steps=count("net_steps", 1),
+                       opening_weight=float(check_range("opening_weight", self.opening_weight, 0.0, 1e6)),
+                       net_beta=float(check_range("net_beta", self.net_beta, 0.0, 1e6)))
 
-    def _check_crop_params(self) -> None:
-        """``cell``, ``size`` and ``blur``, the parameters of :meth:`features`, checked."""
-        check_range("cell", self.cell, 2, 256, integer=True)
-        if not isinstance(self.size, tuple) or len(self.size) != 2:
-            raise InputError(f"size must be a (width, height) pair, got {self.size!r}")
-        for v in self.size:
-            check_range("size (crop width and height)", v, 8, 4096, integer=True)
-        check_range("blur", self.blur, 0.0, 100.0)
+    def _crop_params(self) -> tuple[int, tuple[int, int], float]:
+        """``cell``, ``size`` and ``blur``, the parameters of :meth:`features`, checked, their
+        defaults resolved (``cell``: 8 for HOG, 16 for LBP; ``blur``: 0.7, 0 for ``cnn``) and whole
+        numbers as ints."""
+        _check_choices(feature=self.feature)
+        cell = F.default_cell(self.feature) if self.cell is None else check_range("cell", self.cell, 2, 256, integer=True)
+        size = self.size
+        if not isinstance(size, (tuple, list, np.ndarray)) or len(size) != 2:
+            raise InputError(f"size must be a (width, height) pair, got {size!r}")
+        w, h = (check_range("size (crop width and height)", v, 8, 4096, integer=True) for v in size)
+        # the network learns its own blur (augmentation); HOG and LBP need one against sensor noise
+        blur = ((0.0 if self.feature == "cnn" else 0.7) if self.blur is None
+                else float(check_range("blur", self.blur, 0.0, 100.0)))
+        return cell, (w, h), blur
 
     # -- features
-    def features(self, images: Sequence[np.ndarray]) -> np.ndarray:
-        self._check_crop_params()
+    def features(self, images: Iterable[np.ndarray] | np.ndarray) -> np.ndarray:
+        """The feature matrix of crops (a list or any iterable of BGR/grey images: uint8, uint16
+        or floats in [0, 1]; or an ``(n, H, W[, C])`` array), one row per crop."""
+        images = F.crop_list(images)
+        if isinstance(images, np.ndarray) and images.ndim == 2:
+            raise _one_image(images)
+        self._is_matrix(images)  # (one image of several channels: an error)
+        return self._features(images)
+
+    def _features(self, images, first: int = 0) -> np.ndarray:
+        """:meth:`features` of a list or an array of crops, the first of which is crop ``first``
+        (of what the caller was given: its messages name crops by their place there)."""
+        cell, size, blur = self._crop_params()
         # (crop by crop: no mask as large as a whole stack of float crops; integer crops need none)
         if not (isinstance(images, np.ndarray) and images.dtype.kind not in "fc") and any(
                 np.asarray(im).dtype.kind in "fc" and not np.isfinite(im).all() for im in images):
             raise InputError("a crop holds NaN or infinite pixel values")
-        return F.extract(images, self.feature, self.size, self.cell, blur=self.blur)
+        return F.extract(images, self.feature, size, cell, blur=blur, first=first)
 
     def _project(self, X: np.ndarray, views: np.ndarray | None = None) -> np.ndarray:
         """The GP's inputs: the learned feature of the network (``cnn``), the principal components
@@ -233,7 +268,8 @@ class PoseRegressor:
         if self.net_ is not None:
             from artmotion.pose import cnn
 
-            crops = np.asarray(X, dtype=np.float32).reshape(len(X), self.size[1], self.size[0], 3)
+            _, size, _ = self._crop_params()
+            crops = np.asarray(X, dtype=np.float32).reshape(len(X), size[1], size[0], 3)
             return cnn.embed(self.net_, crops, views).astype(np.float64)
         if self.pca_components_ is None:
             return X
@@ -271,7 +307,7 @@ class PoseRegressor:
         that every kind of training motion is in the calibration, and the motion prior's second
         differences never straddle two groups. Without ``groups`` the rows are one sequence. On the
         same rows the filter is tuned (:func:`tune_filter`)."""
-        self._check_params()
+        p = self._params()
         Y = np.asarray(Y, dtype=float)
         if Y.ndim == 1:
             Y = Y[:, None]
@@ -282,7 +318,7 @@ class PoseRegressor:
         if Y.size and np.abs(Y).max() > _MAX_VALUE:  # (the GP's standardisation would overflow)
             raise InputError(f"labels hold values beyond ±{_MAX_VALUE:g}")
         names = _angle_names(names, Y.shape[1])
-        X = self._as_features(images)
+        X = self._as_features(F.crop_list(images))
         if len(X) != len(Y):
             raise InputError(f"{len(X)} images but {len(Y)} label rows")
         if len(X) < MIN_EXAMPLES:
@@ -303,25 +339,25 @@ class PoseRegressor:
             # feature of its own training crops is optimistic, and so would the variance be
             m = len(X) - n_cal
             rows = order[:m]
-            crops = np.asarray(X[:m] if in_order else X[rows], dtype=np.float32).reshape(m, self.size[1], self.size[0], 3)
-            weights = [self.opening_weight if is_opening(n) else 1.0 for n in self.names_]
-            self.net_ = cnn.fit_net(crops, Y[rows], self.net_steps, seed=self.seed, extra=None if V is None else V[rows],
+            crops = np.asarray(X[:m] if in_order else X[rows], dtype=np.float32).reshape(m, p.size[1], p.size[0], 3)
+            weights = [p.opening_weight if is_opening(n) else 1.0 for n in self.names_]
+            self.net_ = cnn.fit_net(crops, Y[rows], p.net_steps, seed=p.seed, extra=None if V is None else V[rows],
                                     augmented=self.augment, weights=np.array(weights), progress=self.progress,
-                                    beta=self.net_beta)
+                                    beta=p.net_beta)
             self.net_mu_, self.net_sd_ = cnn.target_scale(Y[rows])
             self.readout_ = np.array([self.net_mean == "all" or (self.net_mean == "opening" and is_opening(n))
                                       for n in self.names_])
-        elif self.n_components is not None and self.n_components < min(X.shape):
+        elif p.n_components is not None and p.n_components < min(X.shape):
             from sklearn.decomposition import PCA
 
-            pca = PCA(self.n_components, svd_solver="randomized", random_state=self.seed).fit(X if in_order else X[order])
+            pca = PCA(p.n_components, svd_solver="randomized", random_state=p.seed).fit(X if in_order else X[order])
             self.pca_mean_ = pca.mean_.astype(np.float32)
             self.pca_components_ = pca.components_.astype(np.float32)
         # the GP's rows in ``order`` (calibration rows last); projected first, so no crop is copied
         Z = self._project(X, V)[order]
-        self.gp_ = fit_gp(Z, Y[order], self.method, self.max_exact, self.n_inducing, self.n_opt, self.restarts, self.seed,
-                          progress=self.progress, inducing=self.inducing, neighbours=self.neighbours,
-                          calibrate=n_cal / len(X), n_inducing_var=self.n_inducing_var)
+        self.gp_ = fit_gp(Z, Y[order], self.method, p.max_exact, p.n_inducing, p.n_opt, p.restarts, p.seed,
+                          progress=self.progress, inducing=self.inducing, neighbours=p.neighbours,
+                          calibrate=n_cal / len(X), n_inducing_var=p.n_inducing_var)
         if self.gp_.held_out is not None:  # the filter's motion prior, tuned on the calibration rows
             cal = order[len(X) - n_cal:]
             mean, std = self.gp_.held_out
@@ -347,13 +383,12 @@ class PoseRegressor:
             if images.size and np.abs(images).max() > _MAX_VALUE:
                 raise InputError(f"the feature matrix holds values beyond ±{_MAX_VALUE:g}")
             return True
-        if images.ndim == 2 or (images.ndim == 3 and images.shape[2] in (3, 4)):
-            raise InputError(f"expected a list of crops or a feature matrix, got one "
-                             f"{'x'.join(map(str, images.shape))} image: pass [image] for one crop")
+        if images.ndim == 2 or (images.ndim == 3 and images.shape[2] in (1, 3, 4)):
+            raise _one_image(images)
         return False
 
     def _as_features(self, images) -> np.ndarray:
-        return images if self._is_matrix(images) else self.features(images)
+        return images if self._is_matrix(images) else self._features(images)
 
     def predict(self, images, return_std: bool = False, batch: int = 256, views=None):
         """Mean (and std) of every angle for crops or a feature matrix (and their ``views`` if the
@@ -362,23 +397,25 @@ class PoseRegressor:
         gp = self.gp_
         if gp is None or self.names_ is None:
             raise _not_fitted()
-        check_range("batch", batch, 1, _MAX_COUNT, integer=True)
+        batch = check_range("batch", batch, 1, _MAX_COUNT, integer=True)
+        images = F.crop_list(images)  # (any iterable of crops: a list, once)
         matrix = self._is_matrix(images)  # (checked once here, not again in every chunk)
         if matrix:
+            cell, size, _ = self._crop_params()
             dim = (self.pca_mean_.shape[0] if self.pca_mean_ is not None
-                   else F.feature_dim(self.feature, self.size, self.cell) if self.net_ is not None else gp.X.shape[1])
+                   else F.feature_dim(self.feature, size, cell) if self.net_ is not None else gp.X.shape[1])
             if images.shape[1] != dim:
                 raise InputError(f"the feature matrix has {images.shape[1]} columns, but this model takes {dim}")
         V = self._check_views(views, len(images))
         if self.net_ is not None:  # the network runs on the whole batch, on torch's threads
-            images = self._project(images if matrix else self.features(images), V)
+            images = self._project(images if matrix else self._features(images), V)
             prepare = None
         else:
-            prepare = lambda part: self._project(part if matrix else self.features(part))  # noqa: E731
+            prepare = lambda part, s: self._project(part if matrix else self._features(part, first=s))  # noqa: E731
 
         def work(s):
             part = images[s : s + batch]
-            return gp.predict(part if prepare is None else prepare(part), return_std=True)
+            return gp.predict(part if prepare is None else prepare(part, s), return_std=True)
 
         starts = list(range(0, len(images), batch))
         if len(starts) > 1:
@@ -432,13 +469,15 @@ class PoseRegressor:
         gp = self.gp_
         if gp is None:
             raise _not_fitted()
+        images = F.crop_list(images)
+        max_rows = check_range("max_rows", max_rows, 1, _MAX_COUNT, integer=True)
         n = len(images)
         if n == 0:  # nothing to judge (and no views to check: a run with no tracks has none)
             return float("nan")
         V = self._check_views(views, n)
         if n < DOMAIN_MIN:
             return float("nan")
-        rng = np.random.default_rng(self.seed)
+        rng = np.random.default_rng(_seed(self.seed))
         pick = np.sort(rng.choice(n, min(n, max_rows), replace=False))
         some = images[pick] if isinstance(images, np.ndarray) else [images[i] for i in pick]
         Z = self._project(self._as_features(some), None if V is None else V[pick])
@@ -464,10 +503,11 @@ class PoseRegressor:
         if gp is None or self.accel_var_ is None or self.filter_std_ is None:
             raise _not_fitted()
         neighbours = getattr(gp, "neighbours", None)
+        cell, size, blur = self._crop_params()  # (the values the model uses, not None for a default)
         data: dict[str, Any]  # arrays only; ``Any`` because ``**data`` also meets savez' ``allow_pickle: bool``
         data = dict(
             magic=np.array(MAGIC), version=np.array(VERSION), feature=np.array(self.feature),
-            cell=np.array(self.cell), size=np.array(self.size), blur=np.array(self.blur), names=np.array(self.names_),
+            cell=np.array(cell), size=np.array(size), blur=np.array(blur), names=np.array(self.names_),
             method=np.array(gp.kind), X=gp.X.astype(np.float32), Ys=gp.Ys, y_mean=gp.y_mean, y_std=gp.y_std,
             hypers=np.array([h.as_array() for h in gp.hypers]), accel_var=self.accel_var_,
             var_scale=gp.var_scale,
@@ -525,6 +565,25 @@ class PoseRegressor:
         except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         return reg
+
+
+def _one_image(image: np.ndarray) -> InputError:
+    return InputError(f"expected a list of crops or a feature matrix, got one {'x'.join(map(str, image.shape))} image: "
+                      f"pass [image] for one crop")
+
+
+def _check_choices(**given) -> None:
+    """Each of ``feature``, ``method``, ``inducing``, ``net_mean`` given one of its choices, else an
+    :class:`InputError` naming it."""
+    choices = {"feature": F.FEATURES, "method": METHODS, "inducing": ("kmeans", "random"), "net_mean": NET_MEANS}
+    for name, value in given.items():
+        if not isinstance(value, str) or value not in choices[name]:
+            raise InputError(f"unknown {name} {value!r}; choose one of {', '.join(choices[name])}")
+
+
+def _seed(seed) -> int:
+    """``seed`` checked, as NumPy and scikit-learn take it (an int)."""
+    return check_seed(seed, "seed")
 
 
 def _angle_names(names, k: int) -> list[str]:

@@ -8,6 +8,7 @@ runs (one per track, per angle, per articulation model); this one keeps the same
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -200,6 +201,24 @@ def _loglik_problem(y: np.ndarray, S: np.ndarray) -> None:
                          f"but its smallest eigenvalue is {low:.3g}")
 
 
+class _Checked:
+    """An attribute of :class:`KalmanFilter` (``x, P, F, Q, H, R``) that an assignment checks and
+    converts (:meth:`KalmanFilter._assigned`); read, it is the array itself (changed in place as
+    in filterpy)."""
+
+    def __init__(self, doc: str):
+        self.__doc__ = doc
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.name, self.slot = name, "_" + name
+
+    def __get__(self, obj, objtype=None) -> Any:
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj, value) -> None:
+        setattr(obj, self.slot, obj._assigned(self.name, value))
+
+
 class KalmanFilter:
     """Linear Kalman filter ``x' = F x + w, w ~ N(0, Q)``; ``z = H x + v, v ~ N(0, R)``.
 
@@ -240,59 +259,12 @@ class KalmanFilter:
         self._fits = False
         return a
 
-    @property
-    def x(self) -> np.ndarray:
-        """The state, ``(n,)``."""
-        return self._x
-
-    @x.setter
-    def x(self, value) -> None:
-        self._x = self._assigned("x", value)
-
-    @property
-    def P(self) -> np.ndarray:
-        """The state's covariance, ``(n, n)``."""
-        return self._P
-
-    @P.setter
-    def P(self, value) -> None:
-        self._P = self._assigned("P", value)
-
-    @property
-    def F(self) -> np.ndarray:
-        """The transition, ``(n, n)``."""
-        return self._F
-
-    @F.setter
-    def F(self, value) -> None:
-        self._F = self._assigned("F", value)
-
-    @property
-    def Q(self) -> np.ndarray:
-        """The process noise's covariance, ``(n, n)``."""
-        return self._Q
-
-    @Q.setter
-    def Q(self, value) -> None:
-        self._Q = self._assigned("Q", value)
-
-    @property
-    def H(self) -> np.ndarray:
-        """The measurement matrix, ``(m, n)``: a row per measured value."""
-        return self._H
-
-    @H.setter
-    def H(self, value) -> None:
-        self._H = self._assigned("H", value)
-
-    @property
-    def R(self) -> np.ndarray:
-        """The measurement noise's covariance, ``(m, m)``."""
-        return self._R
-
-    @R.setter
-    def R(self, value) -> None:
-        self._R = self._assigned("R", value)
+    x = _Checked("The state, ``(n,)``.")
+    P = _Checked("The state's covariance, ``(n, n)``.")
+    F = _Checked("The transition, ``(n, n)``.")
+    Q = _Checked("The process noise's covariance, ``(n, n)``.")
+    H = _Checked("The measurement matrix, ``(m, n)``: a row per measured value.")
+    R = _Checked("The measurement noise's covariance, ``(m, m)``.")
 
     @property
     def dim_x(self) -> int:

@@ -152,13 +152,23 @@ def test_whole_float_or_numpy_frame_numbers_are_frame_numbers():
 
 
 @pytest.mark.parametrize("image, needle", [
-    (IMG[:, :, 0], r"got uint8 array of shape \(240, 320\)"), (None, "got NoneType"),
+    (IMG[:, :, 0].astype(np.uint16), r"got uint16 array of shape \(240, 320\)"), (None, "got NoneType"),
     (IMG.astype(float), r"got float64 array of shape \(240, 320, 3\)"),
     (np.zeros((H, W, 4), np.uint8), r"shape \(240, 320, 4\)"), (np.zeros((0, 0, 3), np.uint8), r"shape \(0, 0, 3\)"),
 ])
 def test_images_must_be_bgr_uint8(image, needle):
-    with pytest.raises(InputError, match="frame 1: the image must be a BGR uint8 array.*" + needle):
+    with pytest.raises(InputError, match=r"frame 1: the image must be a BGR \(or grey\) uint8 array.*" + needle):
         run(frames=((k, image) for k in range(1, 13)))
+
+
+@pytest.mark.parametrize("grey", [IMG[:, :, 0], IMG[:, :, :1]], ids=["HxW", "HxWx1"])
+def test_grey_frames_are_tracked_as_bgr(grey):
+    """A grey camera's uint8 frames are taken (made BGR): the same tracks as the BGR frames (they
+    were refused)."""
+    rows, events = run(frames=((k, grey) for k in range(1, 13)))
+    want = run()
+    np.testing.assert_array_equal(rows, want[0])
+    assert events == want[1]
 
 
 def test_detections_must_be_a_mapping():

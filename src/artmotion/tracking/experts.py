@@ -116,7 +116,8 @@ def check_detections(detections, number=None) -> np.ndarray:
 class Frame:
     """One time step as the experts see it.
 
-    ``image`` is the BGR frame, ``number`` its 1-based index, ``detections`` an ``(N, 5)`` array
+    ``image`` is the BGR frame (uint8; a grey one, ``(H, W)`` or ``(H, W, 1)``, is made BGR),
+    ``number`` its 1-based index, ``detections`` an ``(N, 5)`` array
     ``x, y, w, h, score``. Derived images are computed once, on demand, at ``scale`` (a
     downscaled copy keeps dense flow, KLT and background subtraction cheap); results are always
     returned in full-image pixels. ``image_scale``: the size of ``image`` relative to the full
@@ -126,12 +127,15 @@ class Frame:
 
     def __init__(self, number: int, image: np.ndarray, detections=None, scale: float = 1.0,
                  shared: dict | None = None, image_scale: float = 1.0):
+        if (isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.size
+                and (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 1))):
+            image = cv2.cvtColor(image.reshape(image.shape[:2]), cv2.COLOR_GRAY2BGR)   # (a grey camera's frames)
         if (not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8
                 or not image.size):
             what = (f"{image.dtype} array of shape {image.shape}" if isinstance(image, np.ndarray)
                     else type(image).__name__)
-            raise InputError(f"frame {number}: the image must be a BGR uint8 array of shape (height, width, 3), "
-                             f"got {what}")
+            raise InputError(f"frame {number}: the image must be a BGR (or grey) uint8 array of shape (height, "
+                             f"width, 3), got {what}")
         if not (0.0 < scale < np.inf and 0.0 < image_scale < np.inf):
             raise InputError(f"frame {number}: scale and image_scale must be positive, got {scale!r} and {image_scale!r}")
         self.number = number

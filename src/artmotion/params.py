@@ -30,13 +30,15 @@ class Params:
         return {name: getattr(self, name) for name in self._param_names()}
 
     def set_params(self, **params):
+        """The parameters changed, by making the estimator anew with them (its constructor checks
+        them; a refused one leaves the estimator as it was when the constructor checks before it
+        sets anything); an unknown name is an :class:`InputError`."""
         known = self._param_names()
         unknown = sorted(set(params) - set(known))
         if unknown:
             raise InputError(f"set_params: {', '.join(map(repr, unknown))} is not a parameter of "
                              f"{type(self).__name__} (its parameters: {', '.join(known)})")
-        for name, value in params.items():
-            setattr(self, name, value)
+        type(self).__init__(self, **{**self.get_params(), **params})
         return self
 
     def __repr__(self) -> str:

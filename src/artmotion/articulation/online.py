@@ -566,6 +566,10 @@ class OnlineEstimator(Params):
         self._charge = np.array([make_model("prismatic" if n == "revolute" else n, d).n_params[d]
                                  + (noise is None) + (accel is None and n != "static") for n in self.names], dtype=float)
         self._occam = np.zeros(len(self.names))
+        # the parameters as the algorithm uses them (a whole float such as ``3.0`` is the int it is;
+        # the radius range as floats); set_params sets them anew with the parameters
+        self._dim, self._order, self._min_samples = d, int(order), int(min_samples)
+        self._radius_range = (float(lo), float(hi))
 
     def set_params(self, **params) -> OnlineEstimator:
         """scikit-learn's ``set_params``: the parameters checked as the constructor checks them (a
@@ -576,32 +580,7 @@ class OnlineEstimator(Params):
             raise InputError(f"set_params: parameters are set before the first update, and this estimator has seen "
                              f"{self._n} sample{'s' if self._n != 1 else ''} (clone(est).set_params(...) gives a "
                              "fresh one)")
-        known = self.get_params(deep=False)
-        unknown = sorted(set(params) - set(known))
-        if unknown:
-            raise InputError(f"set_params: {', '.join(map(repr, unknown))} is not a parameter of "
-                             f"{type(self).__name__} (its parameters: {', '.join(sorted(known))})")
-        OnlineEstimator.__init__(self, **{**known, **params})
-        return self
-
-    # -- the parameters as the algorithm uses them (given as a whole float such as ``3.0``, a count
-    #    is the int it is; the radius range as floats)
-    @property
-    def _dim(self) -> int:
-        return int(self.dim)
-
-    @property
-    def _order(self) -> int:
-        return int(self.order)
-
-    @property
-    def _min_samples(self) -> int:
-        return int(self.min_samples)
-
-    @property
-    def _radius_range(self) -> tuple[float, float]:
-        lo, hi = self.radius_range
-        return float(lo), float(hi)
+        return super().set_params(**params)
 
     # -- helpers
     @property

@@ -335,8 +335,7 @@ class KalmanFilter:
         for name, a in (("P", self._P), ("F", self._F), ("Q", self._Q)):
             if a.shape != (n, n):
                 raise _shape_error(name, (n, n), a.shape)
-        if self._H.shape[1] != n:
-            raise InputError(f"Kalman filter: H must have shape (m, {n}) for a state of {n}, got {self._H.shape}")
+        _matrix("H", self._H, n)      # (its shape against the state's, as the constructor checks it)
         m = self._H.shape[0]
         if self._R.shape != (m, m):
             raise _shape_error("R", (m, m), self._R.shape)

@@ -32,8 +32,13 @@ def box_from_center(center, size) -> np.ndarray:
 
 
 def box_area(b) -> np.ndarray:
+    """Area of boxes ``x, y, w, h`` from their corners, ``((x + w) - x) ((y + h) - y)``: the
+    arithmetic of :func:`intersection`, so that a box's IoU with itself is exactly 1 (from ``w h``,
+    822 of PETS09-S2L1's 1700 ground-truth boxes gave 1 - 6e-15, and ``eval --iou 1`` scored a
+    result identical to the ground truth MOTA 3.3); TrackEval computes it so."""
     b = np.asarray(b, dtype=float)
-    return np.maximum(b[..., 2], 0.0) * np.maximum(b[..., 3], 0.0)
+    return (np.maximum((b[..., 0] + b[..., 2]) - b[..., 0], 0.0)
+            * np.maximum((b[..., 1] + b[..., 3]) - b[..., 1], 0.0))
 
 
 def intersection(a, b) -> np.ndarray:
@@ -88,7 +93,8 @@ def _overlap_terms(a: list, b: list) -> tuple[float, float, float]:
     w = min(ax + aw, bx + bw) - max(ax, bx)
     h = min(ay + ah, by + bh) - max(ay, by)
     inter = max(w, 0.0) * max(h, 0.0)
-    return inter, max(aw, 0.0) * max(ah, 0.0), max(bw, 0.0) * max(bh, 0.0)
+    return (inter, max((ax + aw) - ax, 0.0) * max((ay + ah) - ay, 0.0),
+            max((bx + bw) - bx, 0.0) * max((by + bh) - by, 0.0))
 
 
 def max_iou(box, boxes) -> float:

@@ -234,9 +234,9 @@ def eval_cmd(
     if out is not None:
         check_out_dir(out, replace=earlier, outputs=outputs)
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
-    if len(Y) < least_examples(folds):
-        raise InputError(f"{len(Y)} labelled crops: {folds}-fold cross-validation needs at least "
-                         f"{least_examples(folds)}", path=labels)
+    least = least_examples(folds)
+    if len(Y) < least:
+        raise InputError(f"{len(Y)} labelled crops: {folds}-fold cross-validation needs at least {least}", path=labels)
     views = _views(boxes, paths)
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
     check_result_keys(names, cols, sets[1:], path=labels)  # a column 'orientation' would hide the stem's error

@@ -126,9 +126,9 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     n = len(X)
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
-    if folds < 2 or n < least_examples(folds):
-        raise InputError(f"need at least {least_examples(max(folds, 2))} examples for {folds}-fold cross-validation, "
-                         f"got {n}")
+    least = least_examples(max(folds, 2))
+    if folds < 2 or n < least:
+        raise InputError(f"need at least {least} examples for {folds}-fold cross-validation, got {n}")
     edges = np.linspace(0, n, folds + 1).astype(int)
     mean = np.empty_like(Y)
     std = np.empty_like(Y)

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from artmotion.errors import InputError
+from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 from artmotion.io.mot import check_ids, check_mot_rows, mot_columns
 
@@ -38,20 +39,6 @@ __all__ = ["apply_rules", "check_ids", "check_rules", "columns_of", "evaluate", 
 
 EPS = np.finfo(float).eps
 
-
-def _box_ious(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU matrix of ``x, y, w, h`` boxes in TrackEval's arithmetic: corners first, areas from the
-    corners, so that a box's IoU with itself is exactly 1 (from ``w * h`` and
-    ``min(x + w) - max(x)``, 822 of PETS09-S2L1's 1700 boxes gave 0.9999999999999937, and at
-    ``--iou 1`` a result identical to the ground truth scored MOTA 3.3)."""
-    a0, b0 = a[:, None, :2], b[None, :, :2]
-    a1, b1 = a0 + a[:, None, 2:4], b0 + b[None, :, 2:4]
-    wh = np.clip(np.minimum(a1, b1) - np.maximum(a0, b0), 0.0, None)
-    inter = wh[..., 0] * wh[..., 1]
-    area_a = np.prod(a1 - a0, axis=2)
-    area_b = np.prod(b1 - b0, axis=2)
-    union = area_a + area_b - inter
-    return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)
 #: The HOTA localisation thresholds (the same floats TrackEval uses).
 HOTA_ALPHAS = np.arange(0.05, 0.99, 0.05)
 #: Keys in the order the CLI prints them.
@@ -102,7 +89,7 @@ def _remove_distractor_matches(gt: np.ndarray, res: np.ndarray) -> np.ndarray:
     for f in np.intersect1d(g_frames, r_frames):
         gi = np.flatnonzero(g_frames == f)
         ri = np.flatnonzero(r_frames == f)
-        sim = _box_ious(gt[gi, 2:6], res[ri, 2:6])
+        sim = iou_matrix(gt[gi, 2:6], res[ri, 2:6])
         sim[sim < 0.5 - EPS] = 0
         rows, cols = linear_sum_assignment(-sim)
         ok = sim[rows, cols] > EPS
@@ -169,7 +156,7 @@ def _prepare(gt: np.ndarray, res: np.ndarray) -> _Frames:
         ri = r_order[r_bounds[0][k] : r_bounds[1][k]]
         gt_ids.append(gt_lab[gi].astype(int).ravel())
         tr_ids.append(tr_lab[ri].astype(int).ravel())
-        sims.append(_box_ious(gt[gi, 2:6], res[ri, 2:6]))
+        sims.append(iou_matrix(gt[gi, 2:6], res[ri, 2:6]))
     last = int(frames.max()) if len(frames) else 0
     return _Frames(gt_ids, tr_ids, sims, len(gt_u), len(tr_u), len(gt), len(res), last)
 

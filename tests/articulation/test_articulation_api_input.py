@@ -251,6 +251,24 @@ def test_online_points_must_match_dim():
         est.update([1.0, 2.0, 0.5])
 
 
+def test_online_estimator_takes_one_kind_of_observation():
+    """In 3-D a 2-D point after 3-D ones was put at z = 0 (a silent jump), and an unstamped
+    observation after stamped ones got its sample index as its time (51 after 5.0 s)."""
+    est = OnlineEstimator()
+    for i in range(5):
+        est.update([0.1 * i, 0.0, 0.5], 0.1 * i)
+    with pytest.raises(InputError, match="3-D point like the earlier ones"):
+        est.update([1.0, 2.0], 0.6)
+    with pytest.raises(InputError, match="needs a time stamp"):
+        est.update([0.6, 0.0, 0.5])
+    est.update([0.6, 0.0, 0.5], 0.6)   # the refusals left the estimator as it was
+    assert est.X.shape == (6, 3)
+    other = OnlineEstimator()
+    other.update([0.0, 0.0, 0.0])
+    with pytest.raises(InputError, match="no time stamp was given before"):
+        other.update([0.1, 0.0, 0.0], 1.0)
+
+
 def test_online_extreme_but_valid_parameters_still_run():
     res = estimate_online(_arc3(), noise=1e-3, accel=1e3, noise_floor=1e-100, radius_range=(1e-100, 1e100))
     assert all(math.isfinite(p) for p in res.probabilities.values())

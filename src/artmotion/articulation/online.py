@@ -163,6 +163,18 @@ def rounding_std(X: np.ndarray) -> float:
     return resolution(X) / math.sqrt(12.0)
 
 
+def precision_floor(X: np.ndarray) -> float:
+    """The least noise std that positions ``X`` can carry: the rounding of values written with few
+    decimals (:func:`rounding_std`), and a relative 1e-9 of the data's spread so that
+    ``sigma^2 > 0``, or the float precision of its coordinates (``1e-14`` of their magnitude, some
+    45 ulps), whichever is larger. Not 1e-9 of the coordinates' magnitude: a drawer's 2 cm track
+    with 0.05 mm of noise, in UTM coordinates 5.4e6 m from the origin, was scored against 5.4 mm."""
+    X = np.asarray(X, dtype=float)
+    if X.size == 0:
+        return 1e-100
+    return max(rounding_std(X), 1e-9 * float(np.ptp(X, axis=0).max()), 1e-14 * float(np.abs(X).max()), 1e-100)
+
+
 def resolution(X: np.ndarray, digits: int = 12) -> float:
     """The step of the decimal grid that every value of ``X`` lies on (``10**-d`` for the fewest
     decimals ``d <= digits`` that write them all; 0 when none does): values a log wrote with few
@@ -544,6 +556,7 @@ class OnlineEstimator(Params):
         self._Xbuf = np.empty((64, 3))  # samples in a growing array (doubling): no list -> array copies
         self._Tbuf = np.empty(64)
         self._n = 0
+        self._given: tuple[int, bool] | None = None  # the first observation's size and whether it had a time stamp
         self.filters: list | None = None
         # log-likelihoods per model: off the manifold, and along it (one-parameter motions share the
         # reference model's: the line's when it is a candidate; see ``loglik``)
@@ -758,15 +771,10 @@ class OnlineEstimator(Params):
         return autocorrelation_time(f.residuals[:, : self._dim])
 
     def _floor(self, X: np.ndarray) -> float:
-        """Least noise std: ``noise_floor``; the rounding of positions written with few decimals
-        (:func:`resolution` ``/ sqrt(12)``, a uniform error over one step: noise-free positions of a
+        """Least noise std: ``noise_floor`` or :func:`precision_floor` (noise-free positions of a
         drawer along an axis, printed to 4 decimals, were scored against a noise of 1e-9 and called
-        static); and a relative 1e-9 of the data's spread so that ``sigma^2 > 0``, or the float
-        precision of its coordinates (``1e-14`` of their magnitude, some 45 ulps), whichever is
-        larger. (The floor was 1e-9 of the coordinates' magnitude: a drawer's 2 cm track with
-        0.05 mm of noise, in UTM coordinates 5.4e6 m from the origin, was scored against 5.4 mm.)"""
-        return max(self.noise_floor, rounding_std(X), 1e-9 * float(np.ptp(X, axis=0).max()),
-                   1e-14 * float(np.abs(X).max()), 1e-100)
+        static)."""
+        return max(self.noise_floor, precision_floor(X))
 
     def _fit_all(self):
         X = self.X
@@ -804,10 +812,20 @@ class OnlineEstimator(Params):
     def update(self, z, t: float | None = None) -> dict:
         """Add one observation (2-D or 3-D point); returns the current model probabilities."""
         z = float_array(z, "an observation").reshape(-1)
+        if z.shape[0] not in (2, 3):
+            raise InputError(f"an observation must be a 2-D or 3-D point, got {z.shape[0]} values")
+        # one kind of observation per track: in 3-D a 2-D point after 3-D ones would be put at
+        # z = 0 (a jump of the track; with dim=2 every z is 0 anyway), and an unstamped one after
+        # stamped ones would be stamped with its sample index
+        given = (int(z.shape[0]) if self._dim == 3 else 2, t is not None)
+        if self._given is not None and given != self._given:
+            size, stamped = self._given
+            if given[0] != size:
+                raise InputError(f"an observation must be a {size}-D point like the earlier ones, got {given[0]} values")
+            raise InputError("every observation needs a time stamp, as the earlier ones had" if stamped
+                             else "no time stamp was given before: give every observation one, or none")
         if z.shape[0] == 2:
             z = np.array([z[0], z[1], 0.0])
-        if z.shape[0] != 3:
-            raise InputError(f"an observation must be a 2-D or 3-D point, got {z.shape[0]} values")
         if not (abs(z[0]) <= MAX_COORD and abs(z[1]) <= MAX_COORD and abs(z[2]) <= MAX_COORD):
             raise InputError(f"an observation must be finite coordinates of magnitude at most {MAX_COORD:g}, got {z.tolist()}")
         if self._dim == 2 and z[2] != 0.0:
@@ -833,6 +851,7 @@ class OnlineEstimator(Params):
         self._Xbuf[k] = z
         self._Tbuf[k] = t
         self._n = k + 1
+        self._given = given
         if k + 1 < self._min_samples:
             self.history.append(np.full(len(self.names), np.nan))
             self.decisions.append(None)

@@ -103,6 +103,22 @@ def test_enter_from_the_left_and_exit_to_the_right(tmp_path, online):
     assert len(exits) == 1 and exits[0]["side"] == "right" and exits[0]["frame"] < 60
 
 
+@pytest.mark.parametrize("online", [False, True])
+def test_a_person_who_vanishes_shortly_before_the_end_exits(tmp_path, online):
+    """A blob detected on frames 1-30 of 40 and then no more, in the middle of the image: the
+    tracker still held its track (lost for 1 s, under ``max_lost``) when the clip ended, and the
+    events had said nothing of it, though the output shows nobody after frame 30."""
+    frames, truth = moving_blob(n=40, v=(2.0, 0.0), start=(60.0, 80.0))
+    rows = [[k + 1, -1, *truth[k], 0.95] for k in range(30)]
+    root = write_mot_folder(tmp_path / "vanish", frames, rows)
+    res = track(root, online=online)
+    assert res.num_tracks == 1
+    last = int(res.tracks[:, 0].max())
+    assert last < 40
+    exits = [e for e in res.events if e["type"] == "exit"]
+    assert len(exits) == 1 and exits[0]["frame"] == last and exits[0]["side"] == "inside"
+
+
 def _jittery_crossing(tmp_path, flicker):
     """The crossing with noisy boxes and a longer occlusion in which the hidden blob's detection
     briefly comes back (frames ``flicker``): the group splits and re-forms at once."""

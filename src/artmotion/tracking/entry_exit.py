@@ -9,7 +9,9 @@
   (``score2 > score1`` and ``score2 > score3``), or beyond ``exit_kl``.
 * The ``enter``/``exit`` events of the output say where (``side``) a person came into view or
   left it: no ``enter`` for people already there when the sequence starts and no ``exit`` for
-  people still there (or still held by the tracker) when it ends.
+  people still there when it ends. A person whose last box is before the last frame gets an
+  ``exit`` there even if the tracker still held the track, lost, when the sequence ended: the
+  output shows nobody after that box (``side`` ``inside`` where that was in the image).
 """
 
 from __future__ import annotations
@@ -70,18 +72,19 @@ def track_ends(t, frame, cfg, width: int, height: int, frames) -> bool:
     return bool(cfg.exit_test and appearance_exit(t, frame, t.box, cfg.exit_kl, cfg.app_parts))
 
 
-def track_events(res: np.ndarray, new: dict, began: dict, alive: dict, first: int, length: int,
+def track_events(res: np.ndarray, new: dict, began: dict, first: int, length: int,
                  width: int, height: int) -> list[dict]:
     """``enter``/``exit`` events of the output tracks.
 
     ``res``: output rows; ``new``: tracker id -> output id (of the output track's first tracklet);
-    ``began``: that id -> ``(frame, box)`` where the person was first detected; ``alive``: that id
-    -> whether the tracker still held the person at the end; ``first``/``length``: the sequence's
+    ``began``: that id -> ``(frame, box)`` where the person was first detected; ``first``/``length``: the sequence's
     first and last frame. A track whose person was already there when the sequence started (first
     detected, or first reported, on the first frame) gets no ``enter``; online, where a track is
     reported only from its confirmation, the ``enter`` is at the first reported frame with the side
-    and position of the first detection. A track still present at the end (last box on the last
-    frame, or still held by the tracker) gets no ``exit``.
+    and position of the first detection. A track whose last box is on the last frame gets no
+    ``exit``; any other gets one at its last box, whether or not the tracker still held it, lost,
+    at the end (the output shows nobody after that box: a clip that ended within ``max_lost`` of
+    a person's last detection had said nothing of them).
     """
     events = []
     for old, nid in new.items():
@@ -94,7 +97,7 @@ def track_events(res: np.ndarray, new: dict, began: dict, alive: dict, first: in
         if min(f0, began.get(old, (f0,))[0]) > first:
             events.append({"type": "enter", "frame": f0, "tracks": [nid], "side": side_of(b0, width, height),
                            "x": round(float(c0[0]), 1), "y": round(float(c0[1]), 1)})
-        if f1 < length and not alive.get(old, False):
+        if f1 < length:
             events.append({"type": "exit", "frame": f1, "tracks": [nid], "side": side_of(b1, width, height),
                            "x": round(float(c1[0]), 1), "y": round(float(c1[1]), 1)})
     return events

@@ -140,16 +140,12 @@ class MultiObjectTracker(OnlineTracker):
 
     def _events(self, res: np.ndarray, new: dict, length: int) -> list[dict]:
         began: dict[int, tuple] = {}
-        last: dict[int, Track] = {}
         for t in self.all_tracks:
             r = self._root(t.id)
             if r not in began or t.first < began[r][0]:
                 began[r] = (t.first, t.first_box)
-            if r not in last or t.first > last[r].first:
-                last[r] = t
-        alive = {r: t.state not in ("dead", "dropped") for r, t in last.items()}
         first = self.first_frame if self.first_frame is not None else 1
-        events = track_events(res, new, began, alive, first, length, self.width, self.height)
+        events = track_events(res, new, began, first, length, self.width, self.height)
         if self.cfg.groups:
             ge = group_events(res, new, self.group_log, self._root, self.piece_span, self.online, self.last_frame)
             if self.cfg.split_hold > 0:

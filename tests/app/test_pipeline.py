@@ -134,7 +134,7 @@ def test_batch_skips_only_runs_it_finished(tmp_path, run_cli):
     (out / "b" / "run.json").write_text("")
     code, stdout, err = run_cli("batch", archive, "--out", out, "--workers", 1)
     assert code == 2 and "0 done, 0 skipped, 2 failed" in stdout, (stdout, err)
-    assert err.count("not written by this command") == 2, err
+    assert err.count("not only this command's earlier outputs") == 2, err
     assert (out / "a" / "run.json").read_text() == '{"my": "own config"}' and (out / "b" / "run.json").read_text() == ""
 
 

@@ -329,7 +329,7 @@ def test_output_folders_through_links_and_checked_before_the_work(tmp_path):
     dangling.symlink_to(tmp_path / "nowhere")
     with pytest.raises(InputError, match="is a link to no folder"):
         check_out_dir(dangling)
-    with pytest.raises(InputError, match="a.txt: exists and was not written by this command"):
+    with pytest.raises(InputError, match="a.txt: exists, in a folder that is not only this command.s earlier outputs"):
         check_out_dir(target, outputs=("b.txt", "a.txt"))
     (tmp_path / "file").write_text("x")
     with pytest.raises(InputError, match="exists and is not a folder"):
@@ -350,7 +350,7 @@ def test_commands_refuse_an_output_folder_before_the_work(tmp_path, run_cli):
                         "cv_hog.csv"),
                        (("grounding", "eval", tmp_path / "none", "--out", mine), "retrieval.png")):
         code, _, err = run_cli(*args)
-        assert code == 2 and f"{mine / name}: exists and was not written by this command" in err, err
+        assert code == 2 and f"{mine / name}: exists, in a folder that is not only this command's earlier outputs" in err, err
     assert sorted(p.name for p in mine.iterdir()) == ["cv_hog.csv", "retrieval.png"]
 
 
@@ -396,3 +396,140 @@ def test_an_output_folder_made_at_the_same_moment_by_another_process_is_used_and
     with atomic_write(out / "b.txt") as fh:
         fh.write("y")
     assert (out / "b.txt").read_text() == "y"
+
+
+def test_an_empty_output_folder_is_filled_in_place(tmp_path, monkeypatch):
+    """An empty folder given as the output (a mount point, a shared folder with its own group and
+    mode) was replaced by a renamed one: a mount point failed with "Device or resource busy" after
+    the work, and a shared folder lost its group and setgid bit. It is filled in place; a folder of
+    the command's earlier outputs keeps its mode when swapped, and on a mount point it is swapped in
+    place (the earlier outputs moved aside, then dropped)."""
+    from artmotion.io import atomic
+    from artmotion.io.atomic import atomic_dir
+
+    out = tmp_path / "shared"
+    out.mkdir()
+    os.chmod(out, 0o2770)
+    inode = os.stat(out).st_ino
+    with atomic_dir(out, replace=lambda p: True) as tmp:
+        (tmp / "a.txt").write_text("first")
+    assert os.stat(out).st_ino == inode and os.stat(out).st_mode & 0o7777 == 0o2770
+    assert sorted(p.name for p in out.iterdir()) == ["a.txt"]
+    with atomic_dir(out, replace=lambda p: True) as tmp:     # the earlier outputs, swapped
+        (tmp / "b.txt").write_text("second")
+    assert os.stat(out).st_mode & 0o7777 == 0o2770 and sorted(p.name for p in out.iterdir()) == ["b.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shared"]
+
+    monkeypatch.setattr(atomic.os.path, "ismount", lambda p: os.fspath(p) == os.fspath(out))
+    inode = os.stat(out).st_ino
+    with atomic_dir(out, replace=lambda p: True) as tmp:     # a mount point: swapped in place
+        (tmp / "c.txt").write_text("third")
+    assert os.stat(out).st_ino == inode and sorted(p.name for p in out.iterdir()) == ["c.txt"]
+    with pytest.raises(_Interrupt):                          # interrupted: the earlier outputs stay
+        with atomic_dir(out, replace=lambda p: True) as tmp:
+            (tmp / "d.txt").write_text("fourth")
+            raise _Interrupt
+    assert sorted(p.name for p in out.iterdir()) == ["c.txt"] and (out / "c.txt").read_text() == "third"
+
+
+def test_an_interrupted_move_into_a_folder_takes_the_new_outputs_out(tmp_path, monkeypatch):
+    """Outputs moved one by one into an existing folder: an interruption half-way leaves the folder
+    as it was, not with some of the new outputs."""
+    from artmotion.io import atomic
+    from artmotion.io.atomic import atomic_dir
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    real_rename, calls = os.rename, []
+
+    def rename_then_interrupt(src, dst):
+        real_rename(src, dst)
+        calls.append(dst)
+        if len(calls) == 2:
+            raise _Interrupt
+
+    monkeypatch.setattr(atomic.os, "rename", rename_then_interrupt)
+    with pytest.raises(_Interrupt):
+        with atomic_dir(out, outputs=("a.txt", "b.txt", "c.txt")) as tmp:
+            for name in ("a.txt", "b.txt", "c.txt"):
+                (tmp / name).write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+def test_a_long_output_name_gets_a_temporary_name_that_fits(tmp_path):
+    """A 246-character name: its temporary name (a dot, the name, 8 characters, .tmp) was over the
+    file systems' 255 bytes, and the command failed naming the temporary file."""
+    from artmotion.io.atomic import atomic_dir, atomic_write
+
+    name = "v" * 246
+    with atomic_dir(tmp_path / name) as tmp:
+        (tmp / "a.txt").write_text("x")
+    with atomic_write(tmp_path / (name[:-4] + "é.txt")) as fh:
+        fh.write("x")
+    assert sorted(len(os.fsencode(p.name)) for p in tmp_path.iterdir()) == [246, 248]
+
+
+def test_a_refused_output_folder_says_what_else_it_holds(tmp_path):
+    """A folder of earlier outputs plus a file of the user's is not replaced; the message said the
+    outputs had not been written by this command (they had): it now names what else is there."""
+    from artmotion.io.atomic import check_out_dir
+
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "run.json").write_text("{}")
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match=r"run.json: exists, in a folder that is not only this command's "
+                                         r"earlier outputs \(it also holds notes.txt\)"):
+        check_out_dir(out, replace=lambda p: False, outputs=("results.txt", "run.json"))
+
+
+def test_an_output_named_by_a_link_is_written_through_it(tmp_path):
+    """The atomic rename put a plain file in place of a link named as the output: a link to a
+    file lost its target's update, and ``--out /dev/stdout`` with stdout redirected replaced the
+    system's /dev/stdout. The target is written and the link kept; a link into /dev or /proc is
+    refused before anything is written."""
+    from artmotion.io.atomic import check_writable
+
+    target = tmp_path / "target.csv"
+    target.write_text("old\n")
+    link = tmp_path / "latest.csv"
+    link.symlink_to(target)
+    check_writable(link)
+    with atomic_write(link) as fh:
+        fh.write("new\n")
+    assert link.is_symlink() and target.read_text() == "new\n"
+    stream = tmp_path / "out.csv"
+    stream.symlink_to("/proc/self/fd/1")
+    for call in (lambda: check_writable(stream), lambda: atomic_write(stream).__enter__()):
+        with pytest.raises(InputError, match="a link to a device or to a stream of the process"):
+            call()
+    assert stream.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["latest.csv", "out.csv", "target.csv"]
+
+
+def test_a_file_output_ending_with_a_slash_is_refused(tmp_path):
+    """``--model newdir/`` wrote a file called ``newdir``: a name ending with a slash means a folder."""
+    from artmotion.io.atomic import check_writable
+
+    for call in (lambda: check_writable(f"{tmp_path}/newdir/"), lambda: atomic_write(f"{tmp_path}/newdir/").__enter__()):
+        with pytest.raises(InputError, match="ends with a slash"):
+            call()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_frame_folder_leaves_hidden_files_out_and_names_two_frames_of_one_number(tmp_path):
+    """macOS puts a ``._NAME`` file beside every copied image: it was read as a frame (or made two
+    frames of one number, without naming them)."""
+    import cv2
+
+    from artmotion.io.sequence import open_sequence
+
+    img = np.full((24, 32, 3), 90, np.uint8)
+    for k in (1, 2, 3):
+        cv2.imwrite(str(tmp_path / f"{k:06d}.png"), img)
+    (tmp_path / "._000001.png").write_bytes(b"\x00\x05\x16\x07 not an image")
+    (tmp_path / ".000004.png").write_bytes(b"hidden")
+    assert open_sequence(tmp_path).length == 3
+    cv2.imwrite(str(tmp_path / "frame2.png"), img)
+    with pytest.raises(InputError, match=r"two images have frame number 2: 000002.png and frame2.png"):
+        open_sequence(tmp_path)

@@ -312,7 +312,7 @@ def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
     (mine / "results.txt").write_text("my own results\n")
     (mine / "notes.txt").write_text("notes\n")
     code, _, err = call("run", seq, "--out", mine, "--no-video")
-    assert_one_line_error(code, err, "results.txt", "not written by this command")
+    assert_one_line_error(code, err, "results.txt", "not only this command's earlier outputs")
     assert (mine / "results.txt").read_text() == "my own results\n"
     assert sorted(p.name for p in mine.iterdir()) == ["notes.txt", "results.txt"]
     (mine / "results.txt").unlink()
@@ -325,7 +325,7 @@ def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
     renders.mkdir()
     (renders / "labels.csv").write_text("image,a\n")
     code, _, err = call("pose", "render", renders, "--poses", "3", "--no-frames")
-    assert_one_line_error(code, err, "labels.csv", "not written by this command")
+    assert_one_line_error(code, err, "labels.csv", "not only this command's earlier outputs")
     assert (renders / "labels.csv").read_text() == "image,a\n" and not (renders / "crops").exists()
 
     # the same command again into its own outputs replaces them; a look-alike marker is not its own
@@ -336,7 +336,7 @@ def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
         assert code == 0, err
     (answer / "result.json").write_text('{"model": "mine"}')
     code, _, err = call("articulation", "video", video, "--out", answer)
-    assert_one_line_error(code, err, "result.json", "not written by this command")
+    assert_one_line_error(code, err, "result.json", "not only this command's earlier outputs")
     assert (answer / "result.json").read_text() == '{"model": "mine"}'
 
     # an output the caller did not declare is caught before anything is moved in
@@ -344,7 +344,7 @@ def test_3_files_in_an_existing_folder_are_never_replaced(tmp_path):
     other.mkdir()
     (other / "a.txt").write_text("A")
     (other / "b.txt").write_text("B")
-    with pytest.raises(InputError, match="b.txt: exists and was not written"):
+    with pytest.raises(InputError, match="b.txt: exists, in a folder that is not only"):
         with atomic_dir(other, outputs=("c.txt",)) as dst:
             for name in ("c.txt", "b.txt"):
                 with atomic_write(dst / name) as fh:

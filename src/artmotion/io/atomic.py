@@ -33,6 +33,29 @@ def _not_regular(path: Path) -> InputError | None:
     return InputError("not a regular file (a device, pipe or socket): give the name of a file to write", path=path)
 
 
+def _file_name(path: str | os.PathLike) -> Path:
+    """``path`` as a :class:`Path`, refused when it ends with a slash (``--model newdir/`` wrote a
+    file called ``newdir``: the slash says a folder was meant)."""
+    raw = os.fspath(path)
+    if raw.endswith(os.sep) or (os.altsep and raw.endswith(os.altsep)):
+        raise InputError("ends with a slash, as a folder's name: give the name of a file to write", path=raw)
+    return Path(path)
+
+
+def _through_link(path: Path) -> Path:
+    """Where an output named by a link is written: the file the link names (the rename of an
+    atomic write put a plain file in place of the link: ``--out /dev/stdout`` with stdout redirected
+    replaced the system's /dev/stdout), which is kept a link. A link into /dev or /proc (a stream
+    of the process, a device) is refused: its target is no file to replace."""
+    if not path.is_symlink():
+        return path
+    target = Path(os.path.realpath(path))
+    if target.parts[:2] in (("/", "dev"), ("/", "proc")) or os.readlink(path).startswith(("/dev/", "/proc/")):
+        raise InputError("is a link to a device or to a stream of the process (/dev/stdout and the like): "
+                         "give the name of a file to write", path=path)
+    return target
+
+
 def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     """``a`` and ``b`` name the same file (the same inode when both exist, else the same absolute path)."""
     try:
@@ -44,7 +67,7 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
 def _prepare(path: str | os.PathLike, made: list[Path]) -> Path:
     """``path`` as a :class:`Path` whose folder exists; the folders created for it are appended to
     ``made`` (outermost first), for :func:`_discard` to remove if the write fails."""
-    path = Path(path)
+    path = _through_link(_file_name(path))
     error = _not_regular(path)
     if error is not None:
         raise error
@@ -99,9 +122,10 @@ def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.P
     parent that is a file or not writable, the same file as another output or as one of the
     command's ``inputs`` (its rename would destroy the input), a file inside an input folder
     (:func:`check_apart`) — without creating anything."""
-    given = [Path(p) for p in paths if p is not None]
+    given = [_file_name(p) for p in paths if p is not None]
     sources = [q for q in inputs if q is not None]
     for k, path in enumerate(given):
+        path = _through_link(path)
         check_apart(path, sources)
         if path.is_dir():
             raise InputError("is a folder, not a file", path=path)
@@ -127,6 +151,20 @@ def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
     return exc if where is None else InputError(exc.reason, path=where, line=exc.line)
 
 
+#: the longest file name (bytes) of common file systems (ext4, XFS, APFS, NTFS in UTF-16 units)
+NAME_MAX = 255
+
+
+def _fitting(prefix: str, suffix: str) -> str:
+    """``prefix`` cut (at a character) so that ``prefix + 8 characters + suffix`` fits in
+    :data:`NAME_MAX` bytes: a 246-character video name made the temporary name of its run folder
+    too long ("File name too long") although the folder's own name fitted."""
+    room = NAME_MAX - 8 - len(os.fsencode(suffix))
+    while len(os.fsencode(prefix)) > room:
+        prefix = prefix[:-1]
+    return prefix
+
+
 def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path]) -> Path:
     """Create a new, empty file (or ``folder``) of a random name ``prefix + 8 characters + suffix``
     in ``parent``, its permissions those of any new file (the umask's; ``mkstemp``'s 0600 would make
@@ -134,6 +172,7 @@ def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path
     a caller's clean-up removes it even when a signal interrupts right after the creation (the
     caller's ``try`` must hold this call); a name that turns out to be taken is removed from
     ``made`` before the next one is tried."""
+    prefix = _fitting(prefix, suffix)
     for _ in range(1000):
         name = parent / f"{prefix}{secrets.token_hex(4)}{suffix}"
         made[:] = [name]
@@ -240,8 +279,10 @@ def _plan_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None,
               outputs: Iterable[str]) -> tuple[Path, bool, bool]:
     """How :func:`atomic_dir` will write the output folder ``path``: the folder (a link to a folder
     followed: the outputs go where it points), whether earlier outputs of the command's own are
-    swapped for the new ones, and whether the folder is the user's (``foreign``: the ``outputs``
-    are moved in, none over an existing name). An :class:`InputError` when it cannot be done."""
+    swapped for the new ones, and whether the folder is the user's (``foreign``: an existing folder,
+    empty or of other files, into which the ``outputs`` are moved, none over an existing name; an
+    empty one is not replaced: it may be a mount point, or have the owner and mode its user gave
+    it). An :class:`InputError` when it cannot be done."""
     path = Path(path)
     if path.is_symlink():
         if not path.is_dir():
@@ -254,7 +295,7 @@ def _plan_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None,
     except OSError as exc:
         raise InputError(f"cannot read the folder: {exc.strerror}", path=path) from None
     swap = path.is_dir() and not empty and replace is not None and replace(path)
-    foreign = path.is_dir() and not empty and not swap
+    foreign = path.is_dir() and not swap
     if foreign:
         _check_free(path, outputs)
     return path, bool(swap), foreign
@@ -301,6 +342,7 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     create it): ``outputs``, the names the block will write, are checked before it runs, and
     every name it wrote is checked again before anything is moved (:class:`InputError`)."""
     path, swap, foreign = _plan_dir(path, replace, outputs)
+    in_place = foreign or (swap and os.path.ismount(path))   # a mount point cannot be renamed
     folders: list[Path] = []         # the folders created to hold it
     _prepare(path, folders)
     made: list[Path] = []            # the temporary folder
@@ -308,26 +350,56 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     swapped = False                  # the earlier outputs are out of ``path``
     try:
         with _undone_on_failure(path, made, folders):
-            tmp = _fresh(path if foreign else path.parent, f".{path.name}.", ".tmp", True, made)
+            tmp = _fresh(path if in_place else path.parent, f".{path.name}.", ".tmp", True, made)
             yield tmp
-            if foreign:
-                names = sorted(p.name for p in tmp.iterdir())
-                _check_free(path, names)
-                for name in names:
-                    os.rename(tmp / name, path / name)
-                tmp.rmdir()
+            if in_place:
+                _move_in(tmp, path, swap, kept)
                 return
             if swap:
                 old = _fresh(path.parent, f".{path.name}.", ".old.tmp", True, kept)
+                mode = os.stat(path)
                 swapped = True           # set first: an interruption inside the rename is covered
                 os.replace(path, old)
             os.replace(tmp, path)           # onto an empty folder too (POSIX rename)
             swapped = False                 # the new outputs are in: the earlier ones go
+            if swap:                        # the folder keeps the mode and owner it had
+                with contextlib.suppress(OSError):
+                    os.chmod(path, stat.S_IMODE(mode.st_mode))
+                    os.chown(path, mode.st_uid, mode.st_gid)
     finally:
         if swapped and not os.path.lexists(path):
             with contextlib.suppress(OSError):
                 os.replace(kept[0], path)         # put the earlier outputs back
         _discard(kept)
+
+
+def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:
+    """Move the new outputs from ``tmp`` (inside ``path``) into ``path``, never over a name there;
+    with ``swap``, the earlier outputs in ``path`` are first moved aside into a folder of ``kept``
+    (inside ``path``). All or nothing: on a failure or an interruption the new outputs moved so
+    far are taken out again and the earlier ones put back."""
+    names = sorted(p.name for p in tmp.iterdir())
+    aside: list[str] = []
+    moved: list[str] = []
+    try:
+        if swap:
+            old = _fresh(path, f".{path.name}.", ".old.tmp", True, kept)
+            for p in sorted(path.iterdir()):
+                if p not in (tmp, old):
+                    aside.append(p.name)
+                    os.rename(p, old / p.name)
+        _check_free(path, names)
+        for name in names:
+            moved.append(name)
+            os.rename(tmp / name, path / name)
+        tmp.rmdir()
+    except BaseException:
+        for name in moved:
+            _discard([path / name])
+        for name in aside:
+            with contextlib.suppress(OSError):
+                os.rename(kept[0] / name, path / name)
+        raise
 
 
 def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()) -> Callable[[Path], bool]:
@@ -356,11 +428,27 @@ def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()
 
 
 def _check_free(folder: Path, names: Iterable[str]) -> None:
-    """An :class:`InputError` naming the first of ``names`` that already exists in ``folder``."""
+    """An :class:`InputError` naming the first of ``names`` that already exists in ``folder`` (a
+    folder that is not only the command's earlier outputs: nothing in it is replaced), and what
+    else the folder holds."""
+    names = list(names)
     for name in names:
         if os.path.lexists(folder / name):
-            raise InputError("exists and was not written by this command; choose another output folder "
-                             "or move it away", path=folder / name)
+            try:
+                others = sorted(p.name for p in folder.iterdir()
+                                if p.name not in names and not _temporary(p.name, folder.name))
+            except OSError:
+                others = []
+            held = (f" (it also holds {', '.join(others[:3])}{', …' if len(others) > 3 else ''})" if others
+                    else "")
+            raise InputError(f"exists, in a folder that is not only this command's earlier outputs{held}: "
+                             "nothing in it is replaced; choose another output folder or move it away",
+                             path=folder / name)
+
+
+def _temporary(name: str, of: str) -> bool:
+    """``name`` is one of the temporary names :func:`atomic_dir` makes for the folder ``of``."""
+    return name.startswith(_fitting(f".{of}.", ".tmp")) and name.endswith(".tmp")
 
 
 def stale_dirs(path: str | os.PathLike) -> list[Path]:

@@ -39,12 +39,25 @@ DEFAULT_FPS = 25.0
 #: decodes fewer frames than it declares is damaged; others may declare an estimate
 _EXACT_COUNT = frozenset({".mp4", ".m4v", ".mov", ".avi"})
 
-__all__ = ["Sequence", "open_sequence", "IMAGE_EXTS", "VIDEO_EXTS"]
+__all__ = ["Sequence", "open_sequence", "IMAGE_EXTS", "VIDEO_EXTS", "hidden", "natural_key"]
 
 
 def _frame_number(path: Path) -> int | None:
     m = re.search(r"(\d+)(?!.*\d)", path.stem)
     return int(m.group(1)) if m else None
+
+
+def natural_key(path: str | os.PathLike) -> tuple:
+    """Sort key of a file name in number order ("2.png" before "10.png"): its runs of digits
+    compared as numbers, the rest as text."""
+    parts = re.split(r"(\d+)", os.path.basename(path))
+    return tuple((0, int(t), t) if t.isdigit() else (1, 0, t) for t in parts if t)
+
+
+def hidden(path: Path) -> bool:
+    """A file a folder listing leaves out: its name starts with a dot (macOS's ``._*`` metadata
+    files beside every copied image, editors' and file managers' files)."""
+    return path.name.startswith(".")
 
 
 class Sequence:
@@ -309,7 +322,7 @@ def _mp4_rate_stated(video: Path) -> bool:
 
 def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
     exts = {ext.lower()} if ext else IMAGE_EXTS
-    files = [p for p in folder.iterdir() if p.suffix.lower() in exts]
+    files = [p for p in folder.iterdir() if p.suffix.lower() in exts and not hidden(p)]
     for p in files:     # a frame that is a folder, a pipe or a broken link is not skipped: it is a lost frame
         if not p.is_file():
             raise InputError("named as an image but not a file (a folder, a pipe or a broken link)", path=p)
@@ -320,9 +333,9 @@ def _list_images(folder: Path, ext: str | None = None) -> list[Path]:
         numbered.sort(key=lambda t: (t[0], t[1].name))
         nums = [n for n, _ in numbered if n is not None]  # all of them (the type checker cannot see it)
         if len(set(nums)) != len(nums):
-            dup = next(n for n in nums if nums.count(n) > 1)
-            raise InputError(f"two images have frame number {dup} (a frame's number is the last number in its "
-                             "name)", path=folder)
+            k = next(k for k in range(1, len(nums)) if nums[k] == nums[k - 1])
+            raise InputError(f"two images have frame number {nums[k]}: {numbered[k - 1][1].name} and "
+                             f"{numbered[k][1].name} (a frame's number is the last number in its name)", path=folder)
         # frames must be consecutive: a hole means a missing frame
         start = nums[0]
         for k, (n, p) in enumerate(numbered):

@@ -226,7 +226,7 @@ def test_cli_describe(tmp_path, run_cli):
     assert code == 0, err
     lines = out.strip().splitlines()
     assert "Person 2 and person 3 merge into one group at frame 40." in lines
-    assert all(l.endswith(".") for l in lines)
+    assert all(line.endswith(".") for line in lines)
     code, out, err = run_cli("describe", res, "--json")
     assert code == 0, err
     data = json.loads(out)
@@ -350,3 +350,19 @@ def test_writers_never_write_what_their_readers_refuse(tmp_path):
     write_mot(tmp_path / "r.txt", scene())
     write_events(tmp_path / "e.jsonl", [{"type": "enter", "frame": 1, "tracks": [1]}])
     assert len(read_mot(tmp_path / "r.txt")) == len(scene()) and len(read_events(tmp_path / "e.jsonl")) == 1
+
+
+def test_cli_describes_only_the_people_of_mot16_ground_truth(tmp_path, run_cli):
+    """MOT16/17 ground truth (9 columns: consider, class, visibility) holds occluders, distractors
+    and reflections: they were described as people ("Person 25 stays in place", an occluder)."""
+    gt = tmp_path / "gt.txt"
+    lines = []
+    for f in range(1, 21):
+        lines.append(f"{f},1,{100 + 5 * f},200,50,120,1,1,1.0")     # a pedestrian walking right
+        lines.append(f"{f},2,600,220,60,130,0,9,1.0")                # an occluder (consider 0)
+        lines.append(f"{f},3,{400 - 5 * f},210,50,120,1,12,0.8")     # a reflection
+    gt.write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli("describe", gt, "--size", "1920x1080", "--fps", "30")
+    assert code == 0, err
+    assert "20 of 60 rows described" in err
+    assert "Person 1" in out and "Person 2" not in out and "Person 3" not in out, out

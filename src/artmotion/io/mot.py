@@ -111,6 +111,17 @@ def mot_columns(path: str | os.PathLike) -> int:
     return max(widths, default=0)
 
 
+#: MOT16/17's class of a pedestrian (column 8 of its ground truth)
+MOT17_PEDESTRIAN = 1
+
+
+def mot17_people(rows: np.ndarray) -> np.ndarray:
+    """The rows of MOT16/17 ground truth (read by :func:`read_mot`) that are people to score or
+    describe: pedestrians (class 1) with consider = 1; the others are occluders, distractors,
+    vehicles and reflections (MOTChallenge's rules, as ``artmotion eval`` applies them)."""
+    return rows[(rows[:, 7] == MOT17_PEDESTRIAN) & (np.trunc(rows[:, 6]) != 0)]
+
+
 def check_mot_rows(rows, what: str = "tracks") -> np.ndarray:
     """``rows`` as an ``(N, >=6)`` float array that :func:`read_mot` would accept back (whole
     frames in ``[1, MAX_FRAME]`` and ids, finite values, positive sizes, coordinates within

@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
-from artmotion.io.mot import check_ids, check_mot_rows, mot_columns
+from artmotion.io.mot import MOT17_PEDESTRIAN, check_ids, check_mot_rows, mot_columns
 
 __all__ = ["apply_rules", "check_ids", "check_rules", "columns_of", "evaluate", "evaluate_sequences", "format_table",
            "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
@@ -108,7 +108,7 @@ def apply_rules(gt: np.ndarray, res: np.ndarray, rules: str) -> tuple[np.ndarray
     if rules == "mot17":
         if len(res) and len(gt):
             res = _remove_distractor_matches(gt, res)
-        gt = gt[gt[:, 7] == 1]
+        gt = gt[gt[:, 7] == MOT17_PEDESTRIAN]
     # Every benchmark: gt rows with confidence 0 ("zero marked", consider = 0) are not evaluated.
     return gt[np.trunc(gt[:, 6]) != 0], res
 

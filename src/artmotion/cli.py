@@ -115,6 +115,47 @@ def _fail(message: str, code: int) -> int:
     return code
 
 
+class _Stdout:
+    """``sys.stdout`` while a command runs: when the reader of a pipe has gone (``artmotion run … |
+    head -1``), the printing stops and the work goes on. A write raised ``BrokenPipeError`` out of
+    the command before: it exited 1 without a word, and ``run`` left its ``--index`` unwritten.
+    The file descriptor is pointed at /dev/null (what is still buffered, and the interpreter's
+    flush at exit, go there); everything else is the stream's."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._closed()
+            return len(text)
+
+    def writelines(self, lines):
+        for line in lines:
+            self.write(line)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._closed()
+
+    def _closed(self) -> None:
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(devnull, self._stream.fileno())
+            finally:
+                os.close(devnull)
+        except (OSError, ValueError, AttributeError):    # no file descriptor (a test's capture): no more output
+            self._stream = open(os.devnull, "w", encoding="utf-8")
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def run() -> None:
     """The console script (and ``python -m artmotion``): :func:`main`, then exit with its status.
 
@@ -163,6 +204,9 @@ def _main(argv: list[str] | None) -> int:
             previous[sig] = signal.signal(sig, _terminate)
         except ValueError:      # not the main thread (a test runner, an embedding program)
             pass
+    stdout = sys.stdout
+    if stdout is not None and not isinstance(stdout, _Stdout):
+        sys.stdout = _Stdout(stdout)
     try:
         code = _app_for(sys.argv[1:] if argv is None else argv)(args=argv, prog_name="artmotion", standalone_mode=False)
         return code if isinstance(code, int) else 0
@@ -206,5 +250,8 @@ def _main(argv: list[str] | None) -> int:
         return _fail(f"internal error: {type(exc).__name__}: {exc} "
                      "(a bug: please report it; ARTMOTION_DEBUG=1 shows the traceback)", 1)
     finally:
+        if sys.stdout is not stdout:
+            sys.stdout.flush()          # (what print() left buffered: a closed pipe stops it here too)
+            sys.stdout = stdout
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -13,7 +13,7 @@ import time
 import traceback
 import unicodedata
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,21 +24,45 @@ from artmotion.io import check_apart
 from artmotion.io.atomic import check_can_create_in
 from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS
 
+#: why an entry of a batch's folder is not run
+NOT_AN_ITEM = "not a video, a folder of images or a MOTChallenge folder"
 
-def find_items(root: str | os.PathLike) -> list[Path]:
-    """Sequences in ``root``: MOTChallenge folders (``seqinfo.ini``), video files, image folders."""
+
+def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]]]:
+    """The entries of ``root`` (not those inside its folders; hidden ones left out): the items
+    (MOTChallenge folders with a ``seqinfo.ini``, video files, image folders), and every other
+    entry with why it is none (a batch reports them: they were silently left out)."""
     root = Path(root)
     if not root.is_dir():
         raise InputError("not a folder", path=root)
-    items = []
+    items, others = [], []
     for p in sorted(root.iterdir()):
         if p.name.startswith("."):
             continue
-        if p.is_dir() and ((p / "seqinfo.ini").is_file() or any(
-                q.suffix.lower() in IMAGE_EXTS for q in p.iterdir() if q.is_file())):
-            items.append(p)
+        if p.is_dir():
+            try:
+                entries = list(p.iterdir())
+            except OSError as exc:      # (no permission: one line for it, not the batch stopped)
+                others.append((p, f"cannot read this folder: {exc.strerror or exc}"))
+                continue
+            if (p / "seqinfo.ini").is_file() or any(q.suffix.lower() in IMAGE_EXTS for q in entries if q.is_file()):
+                items.append(p)
+            elif not entries:
+                others.append((p, "an empty folder"))
+            elif any(q.is_dir() for q in entries):
+                others.append((p, f"{NOT_AN_ITEM} (the folders inside it are not searched)"))
+            else:
+                others.append((p, NOT_AN_ITEM))
         elif p.is_file() and p.suffix.lower() in VIDEO_EXTS:
             items.append(p)
+        else:
+            others.append((p, NOT_AN_ITEM))
+    return items, others
+
+
+def find_items(root: str | os.PathLike) -> list[Path]:
+    """Sequences in ``root``: MOTChallenge folders (``seqinfo.ini``), video files, image folders."""
+    items, _ = scan(root)
     if not items:
         raise InputError("no sequences or videos found", path=root)
     return items
@@ -178,7 +202,9 @@ class BatchInterrupted(Interrupted):
 @dataclass
 class ItemOutcome:
     item: str
-    status: str  # "done", "skipped" or "failed"
+    #: "done", "skipped" (finished before), "failed", or "ignored" (an entry of the folder that is
+    #: no item: ``message`` says why; the command line counts it as skipped)
+    status: str
     out_dir: str
     seconds: float = 0.0
     message: str = ""
@@ -273,11 +299,15 @@ def run_batch(
     force: bool = False,
     processes: bool = True,
     on_progress: Callable[[ItemOutcome, int, int], None] | None = None,
+    own: Iterable[str | os.PathLike] = (),
 ) -> BatchReport:
     """Run :func:`artmotion.app.pipeline.run_pipeline` on every item of ``root`` on Dask.
 
     ``processes=False`` runs the local workers as threads of this process (cheaper to start; for
-    tests and small archives).
+    tests and small archives). The entries of ``root`` that are no item are reported ``"ignored"``
+    (with why), except ``out`` (or a folder holding it) and the caller's ``own`` outputs (an
+    index file). ``on_progress(outcome, reported, total)`` is called in this thread as each
+    outcome is known.
     """
     import uuid
 
@@ -289,12 +319,19 @@ def run_batch(
     out = Path(out) if out is not None else Path(root) / "artmotion-runs"
     if os.path.lexists(out) and not out.is_dir():  # one error now, not one per item later
         raise InputError("is not a folder: the batch writes a run folder per item in it", path=out)
-    items = find_items(root)
+    items, others = scan(root)
+    if not items:
+        raise InputError("no sequences or videos found", path=root)
+    mine = {Path(os.path.realpath(p)) for p in (out, *own)}
     outs = item_dirs(items, out)
     check_apart(out, items)          # one error now, not one per item later (nor runs in an item's folder)
     for item_path, item_out in zip(items, outs):
         check_apart(item_out, (item_path,))
     report = BatchReport()
+    for entry, why in others:
+        real = Path(os.path.realpath(entry))
+        if not any(real == p or real in p.parents for p in mine):
+            report.outcomes.append(ItemOutcome(str(entry), "ignored", "", message=why))
     todo: list[tuple[str, str]] = []
     for item_path, item_out in zip(items, outs):
         try:
@@ -311,7 +348,7 @@ def run_batch(
             report.outcomes.append(ItemOutcome(str(item_path), "skipped", str(item_out), message="already finished"))
         else:
             todo.append((str(item_path), str(item_out)))
-    total = len(items)
+    total = len(report.outcomes) + len(todo)
     for o in report.outcomes:
         if on_progress:
             on_progress(o, len(report.outcomes), total)
@@ -363,6 +400,8 @@ def run_batch(
                 if done is not None:
                     done.message = "finished as the batch stopped"
                     report.outcomes.append(done)
+                    if on_progress:
+                        on_progress(done, len(report.outcomes), total)
             if cluster is not None:
                 _remove_stale_temporaries([od for _, od in todo])
             finished = {o.item for o in report.outcomes}

@@ -85,8 +85,9 @@ def run_cmd(
     tool_model: Optional[Path] = typer.Option(None, "--tool-model",
                                               help="Tool model (artmotion tool train): track surgical instruments "
                                                    "instead of people."),
-    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder "
-                                                           "of images; else 25 is assumed)."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: a folder "
+                                                            "of images says none (25 is assumed), a video's header may "
+                                                            "say it wrong."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys
@@ -173,8 +174,10 @@ def search_cmd(
     with EventIndex(_db_path(db, must_exist=True), write=False) as idx:
         hits = idx.search(query, video=video, limit=limit)
         shared = idx.shared_names()
-    if as_json:
+    if as_json:         # (no match: [] and exit status 1, as in text)
         typer.echo(json.dumps([h.as_dict() for h in hits], indent=1))
+        if not hits:
+            raise typer.Exit(1)
         return
     if not hits:
         typer.echo("no match")
@@ -200,22 +203,33 @@ def batch_cmd(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from artmotion.app.batch import BatchInterrupted, run_batch
-    from artmotion.errors import check_range
+    from artmotion.errors import ArtmotionError, check_range
 
     check_range("--workers", workers, 1, 4 * (os.cpu_count() or 1), integer=True)  # (4 processes per core at most)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
     try:
-        # the bar on stderr, and only on a terminal (on stdout it left an empty line before the report)
+        # the bar on stderr, and only on a terminal (on stdout it left an empty line before the report);
+        # the report's lines go above it only when stdout is that terminal too (else to stdout as they are)
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      transient=True, console=Console(stderr=True), disable=not sys.stderr.isatty()) as progress:
+                      transient=True, console=Console(stderr=True), disable=not sys.stderr.isatty(),
+                      redirect_stdout=sys.stdout.isatty()) as progress:
             task = progress.add_task("batch", total=None)
 
             def on_progress(outcome, done, total):
                 progress.update(task, completed=done, total=total,
                                 description=f"{Path(outcome.item).name}: {outcome.status}")
+                # each line as the item ends (flushed: an interrupted batch kept none of them before)
+                if outcome.status == "done":
+                    typer.echo(f"done     {Path(outcome.item).name}: {outcome.tracks} tracks, {outcome.sentences} "
+                               f"sentences, {outcome.seconds:.1f} s")
+                elif outcome.status == "skipped":
+                    typer.echo(f"skipped  {Path(outcome.item).name}: already finished")
+                elif outcome.status == "ignored":
+                    typer.echo(f"skipped  {Path(outcome.item).name}: {outcome.message}")
+                sys.stdout.flush()
 
             report = run_batch(folder, out, workers=workers, scheduler=scheduler, force=force,
-                               on_progress=on_progress)
+                               on_progress=on_progress, own=[db] if db is not None else [])
     except BatchInterrupted as exc:
         r = exc.report
         kept = r.by_status("done") + r.by_status("skipped")
@@ -223,16 +237,23 @@ def batch_cmd(
         exc.kept = (f"{len(kept)} of {len(kept) + n_failed + len(exc.not_run)} items finished (kept), {n_failed} failed, "
                     f"{len(exc.not_run)} not finished (nothing half-written was kept); run the same command again "
                     "to resume")
+        if db is not None and kept:
+            # the finished runs into the index (one transaction: all or none; the signals are held off)
+            try:
+                count, _ = _add_runs(db, [Path(o.out_dir) for o in kept])
+                exc.kept += f"; indexed {len(kept)} runs in {db} ({count} videos)"
+            except (ArtmotionError, OSError) as err:
+                runs = out if out is not None else folder / "artmotion-runs"
+                exc.kept += (f"; the finished runs are not indexed ({err}): add them with "
+                             f"'artmotion index add {runs} --db {db}'")
         raise
     done, skipped, failed = (report.by_status(s) for s in ("done", "skipped", "failed"))
-    for o in done:
-        typer.echo(f"done     {Path(o.item).name}: {o.tracks} tracks, {o.sentences} sentences, {o.seconds:.1f} s")
-    for o in skipped:
-        typer.echo(f"skipped  {Path(o.item).name}: already finished")
+    ignored = report.by_status("ignored")
     if db is not None and done + skipped:
         count, _ = _add_runs(db, [Path(o.out_dir) for o in done + skipped])
         typer.echo(f"indexed {len(done) + len(skipped)} runs in {db} ({count} videos)")
-    typer.echo(f"{len(done)} done, {len(skipped)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
+    # (the entries of FOLDER that are no item count as skipped)
+    typer.echo(f"{len(done)} done, {len(skipped) + len(ignored)} skipped, {len(failed)} failed in {report.seconds:.1f} s"
                f" on {report.workers} worker(s)")
     if failed:
         # one line per failed item; exit 2 when every failure is bad input, 1 when one is a bug

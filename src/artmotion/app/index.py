@@ -33,6 +33,8 @@ from artmotion.io.files import read_head
 APPLICATION_ID = 0x41524D54
 #: ``PRAGMA user_version``: the schema's version (2: videos keyed by their source)
 SCHEMA_VERSION = 2
+#: seconds to wait for another process's write to the index to end before saying it is locked
+BUSY_TIMEOUT = 5.0
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS videos (
@@ -100,11 +102,14 @@ class Query:
 
     text: str
     subject: str | None = None
+    #: the first track id named (:attr:`tracks`: all of them)
     track: int | None = None
     verb: str | None = None
     direction: str | None = None
     unknown: list[str] = field(default_factory=list)
     frame: int | None = None
+    #: every track id named, in order ("person 8 and person 4 merge": 8, 4)
+    tracks: list[int] = field(default_factory=list)
 
     @property
     def structured(self) -> bool:
@@ -114,8 +119,9 @@ class Query:
 def parse_query(text: str) -> Query:
     """Parse ``"person 3 exits left at frame 40"`` into subject, track id, verb, direction and
     frame. A number after ``frame`` is a frame (the moment must span it), one before ``people`` a
-    count (ignored), any other the track id (a leading minus kept: ids may be negative). (A number
-    was always a track id: "who enters at frame 21" looked for track 21 and found nothing.)
+    count (ignored), any other a track id (a leading minus kept: ids may be negative; every one
+    named counts: "person 8 and person 4 merge"). (A number was always a track id: "who enters at
+    frame 21" looked for track 21 and found nothing.)
     ``text`` that is not a string is an :class:`InputError`."""
     if not isinstance(text, str):
         raise InputError(f"a query must be text, got {type(text).__name__}")
@@ -130,14 +136,15 @@ def parse_query(text: str) -> Query:
             before, after = words[i - 1] if i else "", words[i + 1] if i + 1 < len(words) else ""
             if before in ("frame", "frames"):
                 q.frame = int(word) if q.frame is None else q.frame
-            elif after not in ("people", "persons", "tools") and q.track is None:
-                q.track = int(word)
+            elif after not in ("people", "persons", "tools") and int(word) not in q.tracks:
+                q.tracks.append(int(word))
         elif word in SUBJECTS:
             q.subject = {"people": "person", "persons": "person", "tools": "tool", "grasper": "tool"}.get(word, word)
         elif any(word in forms for forms in DIRECTIONS.values()):
             q.direction = next(d for d, forms in DIRECTIONS.items() if word in forms)
         elif word not in STOPWORDS and not any(word in forms for forms in VERBS.values()):
             q.unknown.append(word)
+    q.track = q.tracks[0] if q.tracks else None
     q.verb = phrase or next((v for v, forms in VERBS.items() if any(w in forms for w in words)), None)
     return q
 
@@ -180,13 +187,13 @@ class EventIndex:
         try:
             if write:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-                self.conn = sqlite3.connect(self.path)
+                self.conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT)
                 if not exists:
                     self.conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                     self.conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
                     self.conn.executescript(SCHEMA)
             else:
-                self.conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
+                self.conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, timeout=BUSY_TIMEOUT)
             self.conn.execute("PRAGMA foreign_keys = ON")
             if exists:  # a page that still parses may hold damaged rows: answers from it would be wrong
                 with self._errors():
@@ -222,8 +229,12 @@ class EventIndex:
         transaction: all are indexed or none (a full disk half-way left some added, unsaid).
         Returns each video's name and the run folder of the entry it replaced (the same source
         indexed before, or earlier in ``runs``: two copies of one run), else ``None``."""
+        from artmotion.app.pipeline import check_run_files
+
         if not self.write:
             raise InputError("the index is open read-only", path=self.path)
+        for run_dir, run in runs:       # the files the manifest describes, as the run left them
+            check_run_files(run_dir, run)
         added = []
         with self._errors(), self.conn:
             for run_dir, run in runs:
@@ -233,7 +244,7 @@ class EventIndex:
     @contextlib.contextmanager
     def _errors(self):
         """SQLite's errors as one :class:`InputError` naming the index (a damaged or truncated
-        file, a read-only one, a full disk)."""
+        file, a read-only one, a full disk, one another process is writing, this one closed)."""
         try:
             yield
         except InputError:
@@ -245,6 +256,12 @@ class EventIndex:
                 raise InputError("cannot write the index: the file is read-only", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "full" in msg:
                 raise InputError(f"cannot write the index: {msg}", path=self.path) from None
+            if isinstance(exc, sqlite3.OperationalError) and "locked" in msg:
+                # (not damaged: advice to build a new one would throw a good index away)
+                raise InputError(f"the index is locked by another process writing to it (waited {BUSY_TIMEOUT:g} s); "
+                                 "try again when it is done", path=self.path) from None
+            if isinstance(exc, sqlite3.ProgrammingError) and "closed" in msg:
+                raise InputError("the index is closed (open it again: EventIndex(path))", path=self.path) from None
             raise InputError(f"damaged index ({msg}); build a new one with 'artmotion index add'",
                              path=self.path) from None
 
@@ -305,8 +322,8 @@ class EventIndex:
         A query the parser understands whole (subject, track id, verb, direction) is answered by
         structured matching alone; words it does not know send it to full-text search when the
         structured match finds nothing. ``video``: only the videos of that name, or of that source
-        (as ``index list`` shows it, which tells apart two videos of one name); a video the index
-        does not hold is an error, not "no match".
+        (as ``index list`` shows it, which tells apart two videos of one name; a relative path is
+        resolved); a video the index does not hold is an error, not "no match".
         """
         if not isinstance(text, str):
             raise InputError(f"a query must be text, got {type(text).__name__}")
@@ -318,15 +335,28 @@ class EventIndex:
             limit = check_range("limit", limit, 1, 10**9, integer=True)
         q = parse_query(text)
         with self._errors():
-            if video is not None and not self.conn.execute(
-                    "SELECT 1 FROM videos WHERE name = ? OR source_path = ? LIMIT 1", (video, video)).fetchone():
-                raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)",
-                                 path=self.path)
+            if video is not None:
+                video = self._video(video)
             hits = self._structured(q, video) if q.structured else []
             if not hits:      # (also what an index made before a verb was told apart files it under)
                 hits = self._fulltext(text, video, q)
         hits.sort(key=lambda h: (-h.score, h.video, h.frame_start or 0))
         return hits[:limit]
+
+    def _video(self, video: str) -> str:
+        """``video`` as the index holds it: a name, or a source path (one given relative to the
+        current folder, or through a link, is resolved as the run resolved its source); an
+        :class:`InputError` when no indexed video has it."""
+        held = "SELECT 1 FROM videos WHERE name = ? OR source_path = ? LIMIT 1"
+        if self.conn.execute(held, (video, video)).fetchone():
+            return video
+        try:
+            resolved = str(Path(video).expanduser().resolve())
+        except (OSError, ValueError, RuntimeError):     # (a NUL byte, a loop of links: no path)
+            resolved = None
+        if resolved is not None and self.conn.execute(held, (resolved, resolved)).fetchone():
+            return resolved
+        raise InputError(f"no video {video!r} in the index ('artmotion index list' shows them)", path=self.path)
 
     def _rows(self, video: str | None, where: str = "", params: tuple = ()):
         sql = (
@@ -343,7 +373,9 @@ class EventIndex:
         return rows
 
     def _structured(self, q: Query, video: str | None) -> list[Hit]:
-        """Every asked-for verb and track id must hold; direction and subject add to the score."""
+        """Every asked-for verb must hold, and one of the asked-for track ids; the share of those ids
+        the sentence names, direction and subject add to the score (a sentence naming persons 8
+        and 4 ranks above one naming 8 alone)."""
         hits = []
         where, params = (" AND s.action = ?", (q.verb,)) if q.verb is not None else ("", ())
         best = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * (q.direction is not None) \
@@ -358,7 +390,7 @@ class EventIndex:
             subject_ok = q.subject is not None and q.subject == subject
             if q.subject is not None and q.verb is None and q.direction is None and q.track is None and not subject_ok:
                 continue
-            score = 3.0 * (q.verb is not None) + 2.0 * (q.track is not None) + 2.0 * direction_ok + 1.0 * subject_ok \
+            score = 3.0 * (q.verb is not None) + 2.0 * _named(q, track_ids) + 2.0 * direction_ok + 1.0 * subject_ok \
                 + 1.0 * (q.frame is not None)
             hits.append(Hit(name, sentence, f0, f1, track_ids, score / best, canon, adjective, subject, run_dir,
                             source=src))
@@ -366,8 +398,9 @@ class EventIndex:
 
     def _fulltext(self, text: str, video: str | None, q: Query) -> list[Hit]:
         """Sentences holding every word of ``text`` (stemmed). Numbers are not words here: the
-        query's track id and frame (:func:`parse_query`) must hold as in the structured match ("frame
-        0" found every sentence with "0.0 s", "person -3" found person 3)."""
+        query's track ids and frame (:func:`parse_query`) must hold as in the structured match ("frame
+        0" found every sentence with "0.0 s", "person -3" found person 3), and the share of the ids
+        a sentence names scales its rank."""
         terms = [t for t in re.findall(r"\w+", text.lower()) if not t.isdigit()]
         if not terms:
             return []
@@ -384,7 +417,10 @@ class EventIndex:
                     match="fulltext", source=src)
                 for name, src, run_dir, sentence, subject, action, adjective, tracks, f0, f1, sid
                 in self._rows(video, where, tuple(rank))]
-        return [h for h in hits if _holds(q, h.tracks, h.frame_start, h.frame_end)]
+        hits = [h for h in hits if _holds(q, h.tracks, h.frame_start, h.frame_end)]
+        for h in hits if q.tracks else ():
+            h.score *= _named(q, h.tracks)
+        return hits
 
     def _check_fulltext(self) -> None:
         """Raise (through :meth:`_errors`) when the full-text index is damaged. ``PRAGMA
@@ -400,11 +436,16 @@ class EventIndex:
 
 
 def _holds(q: Query, tracks: list[int], f0: int | None, f1: int | None) -> bool:
-    """Whether a sentence about ``tracks`` over frames ``f0``-``f1`` has the query's track id and
-    spans its frame (each when asked for)."""
-    if q.track is not None and q.track not in tracks:
+    """Whether a sentence about ``tracks`` over frames ``f0``-``f1`` has one of the query's track
+    ids and spans its frame (each when asked for)."""
+    if q.tracks and not set(q.tracks) & set(tracks):
         return False
     return q.frame is None or (f0 is not None and f0 <= q.frame <= (f1 if f1 is not None else f0))
+
+
+def _named(q: Query, tracks: list[int]) -> float:
+    """The share of the query's track ids that ``tracks`` holds (0 when it asks for none)."""
+    return sum(t in tracks for t in q.tracks) / len(q.tracks) if q.tracks else 0.0
 
 
 def _canon_verb(verb: str | None) -> str | None:

@@ -9,7 +9,9 @@
     run.json        manifest, written last: its presence marks the run as finished
 
 Every file is written atomically, so an interrupted run leaves no half-written output and a
-batch can resume by skipping folders that hold a ``run.json``.
+batch can resume by skipping folders that hold a ``run.json``. The manifest repeats what
+``results.txt``, ``events.jsonl`` and ``sentences.txt`` say (the index reads it) and records
+their SHA-256 (``"sha256"``): :func:`check_run_files` tells a run whose files changed since.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 from artmotion.tracking.config import DETECT_EVERY
 
 MANIFEST = "run.json"
+#: the files whose content the manifest repeats, with their SHA-256 in it (``"sha256"``)
+CHECKED_FILES = ("results.txt", "events.jsonl", "sentences.txt")
 
 
 @dataclass
@@ -297,6 +301,7 @@ def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, eve
         "metrics": metrics,
         "tracking_fps": fps,
         **({"pose": pose_info} if pose_info is not None else {}),
+        "sha256": {name: _sha256(out / name) for name in CHECKED_FILES},
     }
     write_report(out / "report.html", seq, tracks, manifest)
     return manifest
@@ -325,17 +330,47 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
     return manifest, tracks
 
 
+def _sha256(path: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def check_run_files(run_dir: str | os.PathLike, run: dict) -> None:
+    """An :class:`InputError` naming the first file of the run folder whose content is not what its
+    manifest ``run`` (:func:`load_run`) records (a ``results.txt`` truncated, a ``sentences.txt``
+    cut since the run): the manifest's tracks, events and sentences would no longer be the run's.
+    A manifest written before the SHA-256 were recorded is taken as it is."""
+    for name, digest in sorted((run.get("sha256") or {}).items()):
+        path = Path(run_dir) / name
+        try:
+            same = _sha256(path) == digest
+        except FileNotFoundError:
+            same = False
+        except OSError as exc:
+            raise InputError(f"cannot read {name}: {exc.strerror or exc}", path=run_dir) from None
+        if not same:
+            raise InputError(f"changed since the run: {name}{'' if path.exists() else ' (missing)'}; run it again",
+                             path=run_dir)
+
+
 def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = None, run: dict | None = None) -> bool:
     """``run_dir`` holds a finished run: a manifest as :func:`run_pipeline` writes it, not merely
     a file called run.json (the user's own, or an empty one). With ``source``: a finished run of
     that input as it is now (the manifest names its path and its :func:`source_fingerprint`), not
-    of another video of the same name nor of a recording since replaced by a new one. ``run``: the
-    folder's manifest, if already read (:func:`load_run`)."""
-    if run is None:
-        try:
+    of another video of the same name nor of a recording since replaced by a new one; nor a run
+    whose files changed since (:func:`check_run_files`: it is run again). ``run``: the folder's
+    manifest, if already read (:func:`load_run`)."""
+    try:
+        if run is None:
             run = load_run(run_dir)
-        except InputError:
-            return False
+        check_run_files(run_dir, run)
+    except InputError:
+        return False
     if source is None:
         return True
     if run.get("source") != str(Path(source).resolve()):
@@ -396,6 +431,10 @@ def _manifest_problem(run) -> str | None:
     for key in ("source", "fingerprint", "batch", "detections"):
         if key in run and run[key] is not None and not isinstance(run[key], str):
             return f"{key!r} is not a string"
+    digests = run.get("sha256")
+    if digests is not None and not (isinstance(digests, dict) and all(
+            name in CHECKED_FILES and isinstance(d, str) and len(d) == 64 for name, d in digests.items())):
+        return f"'sha256' is not an object of SHA-256 digests of {', '.join(CHECKED_FILES)}"
     seq = run.get("sequence", {})
     ranges = {"length": (1, MAX_FRAME), "fps": (MIN_FPS, MAX_FPS), "width": (1, MAX_COORD), "height": (1, MAX_COORD)}
     if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_number(seq[k], *r) for k, r in ranges.items()):

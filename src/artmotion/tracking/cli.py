@@ -55,7 +55,8 @@ def track_command(
     experts: str = typer.Option(None, "--experts",
                                 help="Comma-separated tracking experts to fuse (default: det,motion; also klt, blob, flow)."),
     online: bool = typer.Option(False, "--online", help="Causal results only (no second, offline pass)."),
-    fps: float = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder of images)."),
+    fps: float = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: a folder of "
+                                                  "images says none (25 is assumed), a video's header may say it wrong."),
     progress: bool = typer.Option(None, "--progress/--no-progress",
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:

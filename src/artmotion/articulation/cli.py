@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Optional
 
@@ -26,6 +27,46 @@ def _fmt(v) -> str:
     return str(v)
 
 
+#: configuration entries that are positions (printed by :func:`_coords`)
+_POSITIONS = ("centre", "origin", "point")
+
+
+def _coords(v, resolution: float | None) -> str:
+    """A position with its digits down to ``resolution`` (at least 4 significant; ``None``: 10):
+    ``.4g`` printed a door's centre 4000 km from the origin as ``4e+06``."""
+    if isinstance(v, list):
+        return "[" + ", ".join(_coords(x, resolution) for x in v) + "]"
+    if not isinstance(v, float) or v == 0.0 or not math.isfinite(v):
+        return _fmt(v)
+    digits = 10 if resolution is None else min(17, max(4, math.floor(math.log10(abs(v) / resolution)) + 1))
+    return f"{v:.{digits}g}"
+
+
+def _resolution(out: dict) -> float | None:
+    """The digits positions are printed with: 1e-4 of the motion's extent (the circle's radius, the
+    line's stroke), else a tenth of the noise, else ``None``."""
+    cfg = out.get("configuration") or {}
+    extent = cfg.get("radius")
+    if extent is None and cfg.get("length_range"):
+        extent = abs(cfg["length_range"][1] - cfg["length_range"][0])
+    if isinstance(extent, float) and math.isfinite(extent) and extent > 0:
+        return 1e-4 * extent
+    noise = out.get("noise")
+    return 0.1 * noise if isinstance(noise, float) and math.isfinite(noise) and noise > 0 else None
+
+
+def _units(units: dict | None) -> str:
+    """The header's units as the summary line says them (``""``: none given)."""
+    units = units or {}
+    said = []
+    length, time = units.get("length"), units.get("time")
+    if length is not None:
+        said.append(f"positions in {length}" + ("" if length in ("m", "px") else ", converted to metres"))
+    if time is not None:
+        said.append(f"time in {time}" + ("" if time in ("s", "sec") else ", converted to seconds"))
+    return "; " + "; ".join(said) if said else ""
+
+
 @articulation_app.command("fit")
 def fit(
     traj: Path = typer.Argument(..., help="Trajectory: rows 'x y', 'x y z' or 'x y z qx qy qz qw' (see --time)."),
@@ -36,9 +77,11 @@ def fit(
                                         help="First column is time (default: header 't'/'time' or 4/8 columns)."),
     order: int = typer.Option(2, "--order", help="Taylor order of the motion variables (2 = constant velocity)."),
     noise_floor: float = typer.Option(0.0, "--noise-floor",
-                                      help="Least observation noise std (data units); the noise is estimated per model."),
+                                      help="Least observation noise std (data units, metres when the header gives a "
+                                           "length unit); the noise is estimated per model."),
     radius_range: tuple[float, float] = typer.Option((0.05, 1.0), "--radius-range",
-                                                     help="Prior range of a hinge's radius (data units; 5 cm - 1 m)."),
+                                                     help="Prior range of a hinge's radius (data units, metres when "
+                                                          "the header gives a length unit; 5 cm - 1 m)."),
 ):
     """Classify a trajectory online (static, prismatic, revolute; poses also planar, rigid)."""
     from artmotion.articulation.trajectory import fit_trajectory
@@ -48,7 +91,10 @@ def fit(
     check_range("--order", order, 1, 6, integer=True)
     check_range("--noise-floor", noise_floor, 0.0, 1e12)
     check_range("--radius-range", radius_range[0], 0.0, 1e12, lo_open=True)
-    check_range("--radius-range", radius_range[1], radius_range[0], 1e12, lo_open=True)
+    check_range("--radius-range", radius_range[1], 0.0, 1e12, lo_open=True)
+    if not radius_range[1] > radius_range[0]:
+        raise InputError(f"--radius-range LOW HIGH: the high end must exceed the low end, got {radius_range[0]:g} "
+                         f"{radius_range[1]:g}")
     if not traj.exists():
         raise InputError("no such file", path=traj)
     out = fit_trajectory(traj, time=time, threshold=threshold, min_samples=min_samples, order=order,
@@ -57,7 +103,8 @@ def fit(
         typer.echo(json.dumps(out, allow_nan=False))
         return
     n = out["samples"]
-    typer.echo(f"{traj}: {n} samples ({out['input']}{', time column' if out['time_column'] else ''})")
+    typer.echo(f"{traj}: {n} samples ({out['input']}{', time column' if out['time_column'] else ''}"
+               f"{_units(out.get('units'))})")
     dec = out["decided_at"]
     when = f"decided at sample {dec} ({100.0 * (dec + 1) / n:.0f}% of the track)" if dec is not None else "undecided"
     typer.echo(f"model: {out['model']}  ({when})")
@@ -83,10 +130,11 @@ def fit(
         if unused:
             typer.echo(f"  ({', '.join(unused)}: options of Algorithm 1's point tracks; a pose track is classified "
                        "by its rigid motion, Sec. 4.3.2)")
+    res = _resolution(out)
     for k, v in out.get("configuration", {}).items():
-        typer.echo(f"  {k}: {_fmt(v)}")
+        typer.echo(f"  {k}: {_coords(v, res) if k in _POSITIONS else _fmt(v)}")
     if out.get("prediction"):
-        typer.echo(f"next sample predicted at {_fmt(out['prediction'][0])}")
+        typer.echo(f"next sample predicted at {_coords(out['prediction'][0], res)}")
 
 
 @articulation_app.command("video")
@@ -97,8 +145,9 @@ def video(
     focal: Optional[float] = typer.Option(None, "--focal", help="Focal length in pixels [default: a 60-degree field of view]."),
     max_parts: int = typer.Option(3, "--max-parts", help="Most moving parts to look for."),
     seed: int = typer.Option(0, "--seed", help="Random seed of the part search (RANSAC)."),
-    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate, when the input does not say it (a folder "
-                                                           "of frames; else 25 is assumed)."),
+    fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: "
+                                                           "a folder of frames says none (25 is assumed), a "
+                                                           "video's header may say it wrong."),
 ):
     """Find the parts that move in a video and name the joint of the one that moves most."""
     import sys
@@ -109,6 +158,10 @@ def video(
         check_range("--focal", focal, 0.0, 1e7, lo_open=True)
     check_range("--max-parts", max_parts, 1, 20, integer=True)
     check_seed(seed)
+    if fps is not None:
+        from artmotion.io.media import MAX_FPS, MIN_FPS
+
+        check_range("--fps", fps, MIN_FPS, MAX_FPS)
     from artmotion.io import check_apart
 
     check_apart(out, (source,))
@@ -133,7 +186,8 @@ def video(
         typer.echo(json.dumps(d, allow_nan=False))
         return
     assumed = "" if res.fps_known else " (assumed; give --fps)"
-    typer.echo(f"{source}: {d['frames']} frames @ {d['fps']:g} fps{assumed}, camera {d['camera']}, "
+    stored = f" as stored (not turned as its orientation tag asks: {res.orientation})" if res.orientation else ""
+    typer.echo(f"{source}: {d['frames']} frames{stored} @ {d['fps']:g} fps{assumed}, camera {d['camera']}, "
                f"noise {d['noise_px']:.2f} px")
     typer.echo(f"model: {d['model']}  (confidence {d['confidence']:.2f}){': ' + d['note'] if d['note'] else ''}")
     for k, p in enumerate(d["parts"], start=1):
@@ -145,7 +199,7 @@ def video(
         ax = p.get("axis")
         if ax:
             where = "towards the camera" if ax.get("towards_camera") else "direction " + _fmt(ax["direction"])
-            typer.echo(f"    axis through {_fmt(ax['point'])} px, {where}")
+            typer.echo(f"    axis through {_coords(ax['point'], 0.1)} px, {where}")
     if out is not None:
         typer.echo(f"wrote {out}/result.json, {out}/parts.png")
 

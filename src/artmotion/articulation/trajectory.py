@@ -12,9 +12,13 @@ A trajectory file has one sample per row, whitespace- or comma-separated:
 Blank lines and lines starting with ``#`` are skipped. One header row is allowed; its names decide
 the columns, in any order: ``x``, ``y``, ``z``, ``qx``, ``qy``, ``qz``, ``qw`` and a time column
 (``t``, ``time``, ``timestamp``, ``stamp``, ``sec``, ``secs``, ``seconds``), each name possibly
-followed by a unit (``time_s``, ``x_m``). A header with any other name is an error (a column taken
-for another one gives a confident wrong answer). Values must be finite, coordinates within
-``±1e12`` and times within ``±1e15``. Every error names the file and line.
+followed by a unit (``time_s``, ``x_m``, also ``x(mm)``). A header with any other name is an error (a
+column taken for another one gives a confident wrong answer). A unit is honoured: positions in
+``km``, ``m``, ``cm``, ``mm``, ``um`` (``µm``), ``in`` or ``ft`` are converted to metres (``px``, pixel
+tracks, are kept as they are), times in ``s``, ``ms``, ``us`` (``µs``), ``ns``, ``min`` or ``h`` to
+seconds; the position columns share one unit (or none), a quaternion has none, and any other
+unit is an error. Values must be finite, coordinates (in metres when converted) within ``±1e12``
+and times (in seconds when converted) within ``±1e15``. Every error names the file and line.
 """
 
 from __future__ import annotations
@@ -44,13 +48,28 @@ _SPLIT = re.compile(r"[,\s;]+")
 _EMPTY_FIELD = re.compile(r"^[,;]|[,;]\s*[,;]")
 
 
+#: length units a header may give the position columns (``x_mm``), in metres; ``px`` (pixel tracks)
+#: is kept as it is (``None``)
+LENGTH_UNITS: dict[str, float | None] = {"km": 1e3, "m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6,
+                                         "in": 0.0254, "ft": 0.3048, "px": None}
+#: time units a header may give the time column (``time_ms``), in seconds
+TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9,
+                                "min": 60.0, "h": 3600.0}
+
+
 @dataclass
 class Trajectory:
+    """Positions (metres when the header gave a length unit to convert), quaternions, times (seconds
+    when the header gave a time unit); ``length_unit``/``time_unit``: the units the header gave
+    (``None``: none, the data's own units)."""
+
     points: np.ndarray  # (n, 2) or (n, 3)
     quats: np.ndarray | None  # (n, 4) or None
     time: np.ndarray | None
     lines: np.ndarray  # 1-based line number of every sample
     path: str | None = None
+    length_unit: str | None = None
+    time_unit: str | None = None
 
     @property
     def kind(self) -> str:
@@ -60,10 +79,13 @@ class Trajectory:
 _COORDS = ("x", "y", "z", "qx", "qy", "qz", "qw")
 
 
-def _header_columns(header: list[str], path, line: int) -> tuple[int | None, list[int]]:
-    """The time column's index (``None``: none) and the coordinate columns' indices in the order
-    ``x y [z] [qx qy qz qw]``, from a header's names (a unit after a name is ignored)."""
+def _header_columns(header: list[str], path, line: int) -> tuple[int | None, list[int], str | None, str | None]:
+    """The time column's index (``None``: none), the coordinate columns' indices in the order
+    ``x y [z] [qx qy qz qw]``, and the units the header gives the time and the positions (``None``:
+    none), from a header's names (``time_ms``, ``x_mm``, ``x(mm)``)."""
     names = [re.sub(r"[^a-z].*", "", h) for h in header]          # the letters before a unit
+    units = [h[len(n):].strip("_-.()[] ") or None for h, n in zip(header, names)]
+    units = [None if u is not None and u.isdigit() else u for u in units]   # x1, y1, z1: a marker's number
     times = [i for i, n in enumerate(names) if n in _TIME_NAMES]
     where = {n: i for i, n in enumerate(names) if n in _COORDS}
     unknown = [header[i] for i, n in enumerate(names) if n not in _TIME_NAMES and n not in _COORDS]
@@ -72,9 +94,24 @@ def _header_columns(header: list[str], path, line: int) -> tuple[int | None, lis
                 "two time columns" if len(times) > 1 else "a column named twice")
         raise InputError(f"header: {what} (columns are named x, y, z, qx, qy, qz, qw and a time column t or "
                          "time, each possibly with a unit: time_s)", path=path, line=line)
+    time_unit = units[times[0]] if times else None
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise InputError(f"header: unknown time unit {time_unit!r} in {header[times[0]]!r} (time units: "
+                         f"{', '.join(TIME_UNITS)})", path=path, line=line)
+    quat_units = [header[i] for n, i in where.items() if n.startswith("q") and units[i] is not None]
+    if quat_units:
+        raise InputError(f"header: {quat_units[0]!r}: a quaternion has no unit", path=path, line=line)
+    declared = {units[i] for n, i in where.items() if not n.startswith("q")}
+    if len(declared) > 1:
+        given = ", ".join(header[i] for n, i in where.items() if not n.startswith("q"))
+        raise InputError(f"header: the position columns {given} must have one unit (or none)", path=path, line=line)
+    length_unit = declared.pop() if declared else None
+    if length_unit is not None and length_unit not in LENGTH_UNITS:
+        raise InputError(f"header: unknown length unit {length_unit!r} (length units: {', '.join(LENGTH_UNITS)})",
+                         path=path, line=line)
     for wanted in (_COORDS[:2], _COORDS[:3], _COORDS):
         if set(where) == set(wanted):
-            return (times[0] if times else None), [where[n] for n in wanted]
+            return (times[0] if times else None), [where[n] for n in wanted], time_unit, length_unit
     raise InputError(f"header: columns {', '.join(sorted(where, key=_COORDS.index))}: expected x, y; x, y, z; or "
                      "x, y, z, qx, qy, qz, qw (and a time column)", path=path, line=line)
 
@@ -126,8 +163,9 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
     data = np.array(rows, dtype=float)
     lines = np.array(line_list)
     tcol = None
+    time_unit = length_unit = None
     if header is not None:
-        t_at, coords = _header_columns(header, path, header_line)
+        t_at, coords, time_unit, length_unit = _header_columns(header, path, header_line)
         if time is not None and time != (t_at is not None):
             raise InputError(f"the header {'names no' if time else 'names a'} time column, but "
                              f"{'--time' if time else '--no-time'} was given", path=path, line=header_line)
@@ -144,10 +182,18 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         what = "after the time column " if has_time else ""
         raise InputError(f"expected 2 (x y), 3 (x y z) or 7 (x y z qx qy qz qw) columns {what}but got {width}",
                          path=path, line=int(lines[0]))
+    if LENGTH_UNITS.get(length_unit or "m") not in (None, 1.0):     # to metres
+        data[:, :min(width, 3)] *= LENGTH_UNITS[length_unit or "m"]
+    if time_unit is not None and tcol is not None:                   # to seconds
+        tcol = tcol * TIME_UNITS[time_unit]
     for values, limit, what in ((data, MAX_COORD, "coordinate"), (tcol, MAX_TIME, "time")):
         if values is not None and np.any(np.abs(values) > limit):
             row = int(np.flatnonzero(np.any(np.abs(values.reshape(len(values), -1)) > limit, axis=1))[0])
-            raise InputError(f"{what} out of range: values must lie in [-{limit:g}, {limit:g}]", path=path,
+            unit = ((" m" if length_unit not in (None, "px") else "") if what == "coordinate" else
+                    " s" if time_unit is not None else
+                    " (stamps in micro- or nanoseconds? name the time column with its unit in a header row: "
+                    "time_us, time_ns)")
+            raise InputError(f"{what} out of range: values must lie in [-{limit:g}, {limit:g}]{unit}", path=path,
                              line=int(lines[row]))
     if tcol is not None:
         steps = np.diff(tcol)
@@ -166,7 +212,7 @@ def read_trajectory(path, time: bool | None = None) -> Trajectory:
         if bad.size:
             raise InputError(f"non-unit quaternion (norm {norms[bad[0]]:.4g})", path=path, line=int(lines[bad[0]]))
         data = data[:, :3]
-    return Trajectory(data, quats, tcol, lines, path)
+    return Trajectory(data, quats, tcol, lines, path, length_unit=length_unit, time_unit=time_unit)
 
 
 def fit_points(points, time=None, **kwargs) -> dict:
@@ -176,24 +222,30 @@ def fit_points(points, time=None, **kwargs) -> dict:
     res = estimate_online(points, time, **kwargs)
     out = res.to_dict()
     out["input"] = f"point{res.dim}d"
+    if not res.fits:     # too few samples to fit: not estimated, as for a pose track (0.0 and [[]] were)
+        out["motion"] = []
+        if kwargs.get("noise") is None:
+            out["noise"] = None
     out["note"] = _radius_note(res, kwargs.get("radius_range") or (0.05, 1.0))
     return out
 
 
 def _radius_note(res, radius_range: tuple[float, float]) -> str | None:
-    """A word when the prior on a hinge's radius, not the data, is what rules the circle out: the
-    circle fits at least twice as closely as the line but its radius lies outside ``radius_range``
-    (a door written in millimetres against the default 5 cm - 1 m was prismatic with 1.0)."""
+    """A word when the prior on a hinge's radius, not the data, is what rules the circle out or
+    weighs against it: the circle fits at least twice as closely as the line but its radius lies
+    above ``radius_range`` or at or below its low end, whatever the answer (a door written in
+    millimetres against the default 5 cm - 1 m was prismatic with 1.0; one in kilometres was
+    revolute with 0.57, and said nothing)."""
     fit = res.fits.get("revolute")
     radius = getattr(fit, "radius", None)
     lo, hi = radius_range
-    if res.model == "revolute" or radius is None or lo <= radius <= hi:
+    if radius is None or lo < radius <= hi:
         return None
     if not res.noise.get("revolute", math.inf) * 2.0 <= res.noise.get("prismatic", 0.0):
         return None
     return (f"the track bends on a circle of radius {radius:.4g} (noise {res.noise['revolute']:.3g}, the line's "
-            f"{res.noise['prismatic']:.3g}), outside the prior range of a hinge's radius [{lo:g}, {hi:g}]: give "
-            "--radius-range in the data's units")
+            f"{res.noise['prismatic']:.3g}), {'above' if radius > hi else 'at or below'} the prior range of a "
+            f"hinge's radius [{lo:g}, {hi:g}]: give --radius-range in the data's units")
 
 
 def fit_poses(positions, quats, time=None, noise: float | None = None, min_samples: int = 7, horizon: int = 5,
@@ -272,4 +324,5 @@ def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_
         out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)
     out["file"] = str(path)
     out["time_column"] = traj.time is not None
+    out["units"] = {"length": traj.length_unit, "time": traj.time_unit}   # as the header gave them (converted)
     return out

@@ -58,6 +58,9 @@ class VideoArticulation:
     note: str = ""
     #: False when the input did not say its frame rate and 25 frames/s were assumed
     fps_known: bool = True
+    #: what the input's orientation tag asks a viewer to do with the frames (``""``: nothing), e.g.
+    #: ``"turn 90°"``: the frames are read as stored, and positions are in stored pixels
+    orientation: str = ""
 
     @property
     def model(self) -> str:
@@ -72,12 +75,17 @@ class VideoArticulation:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "confidence": self.confidence, "parts": self.parts, "camera": self.camera,
-                "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise, "note": self.note or None}
+                "frames": self.tracks.frames, "fps": self.tracks.fps, "noise_px": self.noise, "note": self.note or None,
+                "orientation": self.orientation or None}
 
 
 def analyze_tracks(tracks: PointTracks, focal: float | None = None, max_parts: int = 3, seed: int = 0) -> VideoArticulation:
-    """Stages 2-4 on point tracks (see the module doc)."""
+    """Stages 2-4 on point tracks (see the module doc): a :class:`PointTracks` of two frames or more."""
     _check_options(focal, max_parts, seed)
+    if not isinstance(tracks, PointTracks):
+        raise InputError(f"tracks must be a PointTracks, got {type(tracks).__name__}")
+    if tracks.frames < 2:
+        raise InputError(f"tracks of {tracks.frames} frame{'s' if tracks.frames != 1 else ''}: motion needs at least two")
     from artmotion.articulation.video.joint import classify_part
     from artmotion.articulation.video.segment import REST, camera_motion, moving_tracks, noise_level, rest_frames, rigid_parts
 
@@ -109,7 +117,8 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     the video (the last one read included) are kept in the result, for :func:`parts_strip`:
     a whole number >= 0 (0: none), at most :data:`~artmotion.io.mot.MAX_FRAME`. ``fps``: the
     frame rate, when the input does not say it (a folder of frames; else 25 is assumed) or says
-    it wrong: the time a part must rest first, and the motion models, are in seconds."""
+    it wrong: the time a part must rest first, and the motion models, are in seconds. The frames are
+    read as stored, whatever the input's orientation tag asks (said in ``orientation``)."""
     from artmotion.articulation.video.tracks import point_tracks
     from artmotion.io.mot import MAX_FRAME
     from artmotion.io.sequence import open_sequence
@@ -133,12 +142,18 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
             kept.pop(total - 1, None)
             kept[last[0]] = last[1]
 
-    tracks = point_tracks(frames(), seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
+    try:
+        tracks = point_tracks(frames(), seq.fps, on_frame=None if on_frame is None else (lambda n: on_frame(n, total)))
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(exc.reason, path=source) from None     # (no frames)
     if tracks.frames < 2:
         raise InputError(f"{tracks.frames} frame: motion needs at least two", path=source)
     res = analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
     res.snapshots = kept
     res.fps_known = seq.fps_known
+    res.orientation = seq.orientation
     return res
 
 

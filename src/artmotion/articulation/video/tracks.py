@@ -26,6 +26,8 @@ from functools import cached_property
 import cv2
 import numpy as np
 
+from artmotion.errors import InputError, check_range, float_array
+
 __all__ = ["PointTracks", "point_tracks"]
 
 
@@ -33,7 +35,12 @@ __all__ = ["PointTracks", "point_tracks"]
 class PointTracks:
     """``xy[f, i]``: image position (pixels) of track ``i`` in frame ``f``; NaN where untracked.
     ``slips[i]`` of ``checks[i]`` checks found track ``i``'s first position looking more like its
-    first patch than its current position did (see the module doc; None: not checked)."""
+    first patch than its current position did (see the module doc; None: not checked).
+
+    Checked when made (an :class:`InputError` naming the argument): ``xy`` of shape
+    ``(frames, tracks, 2)``, both coordinates NaN or both finite, within ``±1e6`` px; ``fps`` in
+    ``[0.001, 1000]``; ``width`` and ``height`` whole numbers >= 1; ``slips`` and ``checks`` whole
+    numbers >= 0, one per track, no more slips than checks."""
 
     xy: np.ndarray  # (frames, tracks, 2) float64
     fps: float
@@ -41,6 +48,34 @@ class PointTracks:
     height: int
     slips: np.ndarray | None = None
     checks: np.ndarray | None = None
+
+    def __post_init__(self):
+        from artmotion.io.media import MAX_FPS, MAX_IMAGE_PIXELS, MIN_FPS
+        from artmotion.io.mot import MAX_COORD
+
+        xy = float_array(self.xy, "xy")
+        if xy.ndim != 3 or xy.shape[2] != 2:
+            raise InputError(f"xy must be an array of shape (frames, tracks, 2), got shape {xy.shape}")
+        nan = np.isnan(xy)
+        if (nan[..., 0] != nan[..., 1]).any():
+            raise InputError("xy: a position with one coordinate NaN (an untracked entry has both NaN)")
+        if (np.abs(xy[~nan]) > MAX_COORD).any():     # (inf too)
+            raise InputError(f"xy must hold finite positions within ±{MAX_COORD:g} px (NaN where untracked)")
+        self.xy = xy
+        self.fps = float(check_range("fps (frames/s)", self.fps, MIN_FPS, MAX_FPS))
+        self.width = check_range("width", self.width, 1, MAX_IMAGE_PIXELS, integer=True)
+        self.height = check_range("height", self.height, 1, MAX_IMAGE_PIXELS, integer=True)
+        for name in ("slips", "checks"):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            v = float_array(v, name)
+            if v.shape != (xy.shape[1],) or not np.all((v >= 0) & (v == np.round(v))):
+                raise InputError(f"{name} must be {xy.shape[1]} whole numbers >= 0 (one per track), got "
+                                 f"{'shape ' + str(v.shape) if v.shape != (xy.shape[1],) else 'other values'}")
+            setattr(self, name, v.astype(np.int64))
+        if (self.slips is None) != (self.checks is None) or (self.slips is not None and np.any(self.slips > self.checks)):
+            raise InputError("slips and checks go together (both or neither), no more slips than checks")
 
     @property
     def slipped(self) -> np.ndarray:
@@ -153,6 +188,8 @@ def point_tracks(frames: Iterable[np.ndarray], fps: float, max_points: int = 100
         prev = gray
         if on_frame is not None:
             on_frame(f + 1)
+    if not rows:
+        raise InputError("no frames to track")
     xy = np.full((len(rows), n_tracks, 2), np.nan)
     for f, (i, p) in enumerate(rows):
         xy[f, i] = p

@@ -127,7 +127,7 @@ def test_train_predict_end_to_end(split, run_cli, tmp_path):
             x0, y0 = int(max(0, x - s / 2)), int(max(0, y - s / 2))
             cv2.imwrite(str(real / f"{f}_{j}.png"), img[y0:int(y + s / 2), x0:int(x + s / 2)])
     code, out, err = run_cli("pose", "predict", model, real, "--out", tmp_path / "n.csv")
-    assert code == 0 and "unlike the model's training crops" in out, (out, err)
+    assert code == 0 and "unlike the model's training crops" in err, (out, err)
     code, out, err = run_cli("pose", "predict", model, split / "train", "--out", tmp_path / "t.csv")
     assert code == 0 and "unlike" not in out, out
 

@@ -464,4 +464,4 @@ def test_the_cap_of_heads_comes_from_the_training_frames(tmp_path, run_cli, monk
     code, out, err = run_cli("tool", "track", _noise_frames(tmp_path / "frames", (1, 2, 3)), "--model", tmp_path / "m.pt",
                              "--out", tmp_path / "p.csv")
     assert code == 0, err
-    assert "note: on 3 frame(s) the detector found more heads than the 2 a frame the model reports" in out
+    assert "note: on 3 frame(s) the detector found more heads than the 2 a frame the model reports" in err

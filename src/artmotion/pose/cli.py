@@ -71,13 +71,16 @@ def train_cmd(
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
     sets: Optional[list[Path]] = typer.Option(None, "--set", help=(
         "A further training sequence: a folder as 'pose render' writes it (crops/, labels.csv and, for every set or "
-        "none, boxes.csv). Repeatable; the variance is calibrated on the end of every sequence.")),
+        "none, boxes.csv: only --feature cnn uses it). Repeatable; the variance is calibrated on the end of every "
+        "sequence.")),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
     inducing_var: int = typer.Option(250, "--inducing-var", help=(
         "The sparse GP's variance from this many of its inducing points (0 = all: slower per frame).")),
     components: int = typer.Option(128, "--components", help="Principal components of the feature (0 = raw feature)."),
-    steps: int = typer.Option(3000, "--steps", help="cnn: training mini-batches of 64 crops."),
+    steps: Optional[int] = typer.Option(None, "--steps", help=(
+        "Training mini-batches of 64 crops of the cnn feature's network (default 3000); only with --feature cnn "
+        "(hog and lbp train no network: an error).")),
     seed: int = typer.Option(0, "--seed"),
 ):
     """Learn one Gaussian process per angle from labelled crops (one sequence, or several with --set)."""
@@ -85,7 +88,7 @@ def train_cmd(
 
     from artmotion.io import check_writable
     from artmotion.pose.data import load_labelled, read_views
-    from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor
+    from artmotion.pose.model import CALIBRATED_MIN, MIN_EXAMPLES, PoseRegressor
 
     if (images is None) != (labels is None):
         raise InputError("IMAGES and LABELS go together")
@@ -103,20 +106,25 @@ def train_cmd(
         if im.resolve() in seen:
             raise InputError("the same training sequence given twice", path=im)
         seen.add(im.resolve())
+    if feature != "cnn":  # hog and lbp do not use where a crop lies: a set's boxes.csv is not read
+        seqs = [(i, lab, None) for i, lab, _ in seqs]  # (--boxes with them: an error below)
     if len({b is None for _, _, b in seqs}) > 1:
         raise InputError("boxes for some training sequences but not for all: "
                          + ", ".join(str(i) for i, _, b in seqs if b is None) + " have none")
-    check_writable(model, inputs=[f for seq in seqs for f in seq])
+    check_writable(model, inputs=[f for seq in seqs for f in seq] + [boxes])
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
     check_range("--inducing-var", inducing_var, 0, 1_000_000, integer=True)
-    check_range("--steps", steps, 1, 1_000_000, integer=True)
+    if steps is not None:
+        check_range("--steps", steps, 1, 1_000_000, integer=True)
     check_seed(seed)
     reg = PoseRegressor(feature=feature, method=method, n_inducing=inducing, n_components=components or None,
-                        seed=seed, progress=True, net_steps=steps,
+                        seed=seed, progress=True, net_steps=3000 if steps is None else steps,
                         n_inducing_var=inducing_var or None)  # checks feature and method before any image is read
     if boxes is not None and feature != "cnn":
         raise InputError(f"--boxes needs --feature cnn (the {feature} feature does not use where a crop lies)")
+    if steps is not None and feature != "cnn":
+        raise InputError(f"--steps needs --feature cnn (the {feature} feature trains no network)")
     names: list[str] = []
     imgs: list = []
     Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)
@@ -145,12 +153,17 @@ def train_cmd(
     typer.echo(f"trained {gp.kind} GP on {len(Y)} crops{source}, {gp.n_outputs} angles, feature {feature} "
                f"({time.perf_counter() - t:.1f} s) -> {model}")
     typer.echo(f"  {hyp}")
+    if gp.held_out is None:  # (fit_gp calibrates on 10 held-out crops or more)
+        typer.echo(f"note: {len(Y)} crops are too few to calibrate the standard deviations on held-out crops (that "
+                   f"needs 10 of them, the last 20 % of each sequence: {CALIBRATED_MIN} crops of one sequence); they "
+                   "are the GP's own and may be far too small", err=True)
 
 
 @pose_app.command("predict")
 def predict_cmd(
     model: Path = typer.Argument(..., help="Model file from 'artmotion pose train'."),
-    images: Path = typer.Argument(..., help="Folder of crops; file-name order is one sequence."),
+    images: Path = typer.Argument(..., help=("Folder of crops; file-name order (numbers as numbers: 2.png before "
+                                             "10.png) is one sequence; hidden files (.*) are left out.")),
     out: Path = typer.Option(..., "--out", help="CSV 'image,<name>,<name>_std,...' to write."),
     smooth: bool = typer.Option(False, "--smooth", help="Kalman-smooth the sequence (Eq. 3.6-3.7 forward, "
                                 "then Rauch-Tung-Striebel backward: each frame from past and future ones)."),
@@ -175,6 +188,7 @@ def predict_cmd(
     t = time.perf_counter()
     X = reg.features(imgs)  # once, for the prediction and the domain test below
     mean, std = reg.predict(X, return_std=True, views=views)
+    far = reg.far_from_training(std)
     if smooth:
         mean, std = reg.make_filter().smooth(mean, std)
     dt = time.perf_counter() - t
@@ -185,7 +199,13 @@ def predict_cmd(
     auc = reg.domain_auc(X, views)
     if is_foreign(auc):
         typer.echo(f"note: the crops are unlike the model's training crops (told from the nearest of them with "
-                   f"AUC {auc:.2f}; docs/surgical.md): its angles may be far off")
+                   f"AUC {auc:.2f}; docs/surgical.md): its angles may be far off", err=True)
+    if far.any():
+        spread = ", ".join(f"{n} {s:.3g}°" for n, s in zip(reg.names_, reg.prior_std()))
+        typer.echo(f"note: {int(far.sum())} of {len(far)} crops are far from every training crop (no training crop "
+                   f"explains half of their GP variance): the model knows nothing of them, and their standard "
+                   f"deviation is only the spread of its training angles ({spread}): their angles may be far off",
+                   err=True)
 
 
 @pose_app.command("eval")

@@ -13,15 +13,18 @@ from artmotion.errors import InputError
 from artmotion.io import atomic_write
 from artmotion.io.media import IMAGE_EXTS
 from artmotion.io.media import read_image as _read_checked
+from artmotion.io.sequence import hidden, natural_key
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 
 
 def list_images(folder: str | os.PathLike) -> list[Path]:
-    """Image files of a folder in file-name order (one sequence)."""
+    """Image files of a folder in file-name order, numbers compared as numbers ("2.png" before
+    "10.png"; one sequence); hidden files (a name starting with a dot: macOS's ``._*``) are left out."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError("not a folder of images", path=folder)
-    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTS)
+    files = sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTS and not hidden(p)),
+                   key=natural_key)
     if not files:
         raise InputError("no images in folder", path=folder)
     return files
@@ -66,8 +69,19 @@ def read_labels(path: str | os.PathLike) -> tuple[list[str], list[str], np.ndarr
     return names, images, np.array(values, dtype=float)
 
 
+def _label_key(name: str) -> str:
+    """A label's image name without its extension when it has an image file's (of any case): the
+    name a crop's file is matched by when its full name has no label (as ``boxes.csv``'s rows)."""
+    p = Path(name)
+    return p.stem if p.suffix.lower() in IMAGE_EXTS else name
+
+
 def load_labelled(images_dir: str | os.PathLike, labels: str | os.PathLike, progress: bool = False):
     """Crops and labels matched by file name; every image needs a label and every label an image.
+
+    A label names its crop's file as it is (``000001.png``) or without the extension, which may
+    also be of another case (``000001``, ``000001.PNG``), as ``boxes.csv`` does; one label matching
+    two crops (``000001.png`` and ``000001.jpg``) is an error naming both.
 
     Returns ``(names, paths, images, Y)`` in file-name order.
     """
@@ -79,14 +93,28 @@ def load_labelled(images_dir: str | os.PathLike, labels: str | os.PathLike, prog
         raise InputError(f"column {twice[0]!r} would appear twice in the predictions' header "
                          "(image,<angle>,<angle>_std,...): rename a column", path=labels, line=1)
     index = {n: i for i, n in enumerate(img_names)}
-    by_name = {p.name: p for p in files}
+    by_key: dict[str, list[int]] = {}
+    for i, n in enumerate(img_names):
+        by_key.setdefault(_label_key(n), []).append(i)
+    row_of = {p: index[p.name] for p in files if p.name in index}  # exact names first
+    owner = {i: p for p, i in row_of.items()}
     for p in files:
-        if p.name not in index:
+        if p in row_of:
+            continue
+        rows = by_key.get(p.stem, [])
+        if len(rows) > 1:
+            raise InputError(f"labels {img_names[rows[0]]!r} and {img_names[rows[1]]!r} both name image {p.name}",
+                             path=labels)
+        if not rows:
             raise InputError(f"image has no label in {labels}", path=p)
-    for n in img_names:
-        if n not in by_name:
+        if rows[0] in owner:
+            raise InputError(f"label {img_names[rows[0]]!r} names two images: {owner[rows[0]].name} and {p.name} "
+                             "(label each by its full file name)", path=labels)
+        row_of[p], owner[rows[0]] = rows[0], p
+    for i, n in enumerate(img_names):
+        if i not in owner:
             raise InputError(f"labelled image {n!r} not found in {images_dir}", path=labels)
-    order = [index[p.name] for p in files]
+    order = [row_of[p] for p in files]
     return names, files, read_images(files, progress), Y[order]
 
 

@@ -32,6 +32,13 @@ NET_MEANS = ("opening", "all", "none")
 CALIBRATE = 0.2
 #: the fewest labelled crops a model is trained on
 MIN_EXAMPLES = 3
+#: the fewest crops of one sequence whose GP variance is calibrated (:func:`artmotion.pose.gp.fit_gp`
+#: calibrates on 10 held-out rows or more: the last ``CALIBRATE`` of 48 crops)
+CALIBRATED_MIN = 48
+#: :meth:`PoseRegressor.far_from_training`: the share of the GP's prior variance left at a crop that
+#: no training crop explains (0.06-0.3 on unseen and dark renders, 0.96-1 on crops unlike every one
+#: of a few near-identical training crops)
+FAR_SHARE = 0.5
 #: :meth:`PoseRegressor.domain_auc`: least AUC of crops that are not what the model was trained on,
 #: the fewest crops it judges
 FOREIGN_AUC = 0.9
@@ -489,6 +496,31 @@ class PoseRegressor(BaseEstimator):
         y = np.r_[np.zeros(len(T)), np.ones(len(Z))]
         p = cross_val_predict(LogisticRegression(max_iter=2000), A, y, cv=5, method="predict_proba")[:, 1]
         return float(roc_auc_score(y, p))
+
+    def prior_std(self) -> np.ndarray:
+        """Each angle's standard deviation (degrees) at a crop far from every training crop: the
+        GP's prior, i.e. the spread of the training angles (calibrated)."""
+        gp = self.gp_
+        if gp is None:
+            raise _not_fitted()
+        prior = np.array([h.sf2 + h.sn2 for h in gp.hypers])
+        return np.sqrt(prior * gp.var_scale) * gp.y_std
+
+    def far_from_training(self, std: np.ndarray) -> np.ndarray:
+        """Which crops, given the standard deviations :meth:`predict` gave them (``(n, k)``), are
+        far from every training crop: for every angle more than :data:`FAR_SHARE` of the GP's prior
+        variance is left (its training crops explain less than half of it). There the model knows
+        nothing: its mean falls back to the training mean (or the network's read-out) and its
+        standard deviation to :meth:`prior_std`, the spread of the training angles, which a training
+        set of a few near-identical crops makes tiny whatever the error."""
+        gp = self.gp_
+        if gp is None:
+            raise _not_fitted()
+        S = np.asarray(std, dtype=float).reshape(-1, gp.n_outputs)
+        sf2 = np.array([h.sf2 for h in gp.hypers])
+        sn2 = np.array([h.sn2 for h in gp.hypers])
+        latent = (S / gp.y_std) ** 2 / gp.var_scale - sn2
+        return np.all(latent > FAR_SHARE * sf2, axis=1)
 
     def make_filter(self, dt: float = 1.0) -> PoseFilter:
         """The model's Kalman filter: its acceleration variance from the training labels, scaled on

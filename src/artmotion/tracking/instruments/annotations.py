@@ -14,7 +14,14 @@ row per instrument per frame:
 A predictions file has the header ``frame,track,x,y,scale,angle,score``: ``track`` is a persistent
 identity (a whole number ``>= 0``) and ``score`` a confidence in ``[0, 1]``.
 
-Blank lines are skipped. Every problem -- a missing, unknown or repeated column, a row with the
+Both are CSV: a field may be quoted (``"frame","tool",...``, as spreadsheets export), the column
+names are read in any case (``Frame``) and blank lines are skipped. An annotation file may have
+further columns (an export's ``label``, ``visible``): they are not read, and ``read_tools_csv``
+names them to its caller (``artmotion tool train|eval`` say so) -- every column it needs must be
+there, so a misspelt one is still an error, while a column such as ``visible`` is not silently
+taken into account. A predictions file, artmotion's own, has its columns only.
+
+Every problem -- a missing, unknown (predictions) or repeated column, a row with the
 wrong number of fields, a value that is not a finite number, a frame, tool or track that is not a
 whole number in range, a non-positive scale, a coordinate beyond ``+-1e6`` px, a tool or track
 given twice in one frame, a file without rows -- is an :class:`InputError` naming the file and line.
@@ -22,6 +29,8 @@ given twice in one frame, a file without rows -- is an :class:`InputError` namin
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 import os
 from pathlib import Path
@@ -51,16 +60,20 @@ def wrap_angle(angle: float) -> float:
     return 0.0 if a >= math.tau else a      # -1e-17 + 2*pi rounds to 2*pi
 
 
-def _header(fields: list[str], columns: tuple[str, ...], path: Path, lineno: int) -> list[str]:
-    """The column names of a header row, checked against ``columns`` (any order, each once)."""
-    names = [f.strip() for f in fields]
+def _header(fields: list[str], columns: tuple[str, ...], path: Path, lineno: int, extra: list[str] | None) -> list[str]:
+    """The column names of a header row (lower case), checked against ``columns`` (any order, any
+    case, each once); other columns are an error, or, given a list ``extra``, added to it."""
+    names = [f.strip().lower() for f in fields]
     seen: set[str] = set()
-    for name in names:
+    for field, name in zip(fields, names):
         if name in seen:
-            raise InputError(f"duplicate column {name!r}", path=path, line=lineno)
+            raise InputError(f"duplicate column {field.strip()!r}", path=path, line=lineno)
         seen.add(name)
         if name not in columns:
-            raise InputError(f"unknown column {name!r} (expected {','.join(columns)})", path=path, line=lineno)
+            if extra is None:
+                raise InputError(f"unknown column {field.strip()!r} (expected {','.join(columns)})", path=path,
+                                 line=lineno)
+            extra.append(field.strip())
     missing = [c for c in columns if c not in seen]
     if missing:
         raise InputError(f"missing column{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}",
@@ -68,24 +81,38 @@ def _header(fields: list[str], columns: tuple[str, ...], path: Path, lineno: int
     return names
 
 
-def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, nothing: str | None) -> _Rows:
+def _csv_rows(text: str, path: Path, what: str):
+    """``(line number, fields)`` of the CSV ``text``'s rows that are not blank (quoted fields read
+    as the :mod:`csv` module reads them, as :func:`artmotion.io.table.read_csv` does)."""
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        for row in reader:
+            if any(f.strip() for f in row):
+                yield reader.line_num, row
+    except csv.Error as exc:
+        raise InputError(f"not {what} (CSV): {exc}", path=path, line=reader.line_num) from None
+
+
+def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, nothing: str | None,
+               extra: list[str] | None = None) -> _Rows:
     """The checked rows of a CSV file with the header ``columns``: frame -> ``ident`` -> values
-    (``nothing``: the error when it has no rows; ``None``: none is fine, a header is needed)."""
+    (``nothing``: the error when it has no rows; ``None``: none is fine, a header is needed;
+    ``extra``: a list to which the names of further columns are added, which are then not read;
+    ``None``: they are an error)."""
     text = read_text(path, what)
     names: list[str] | None = None
     rows: _Rows = {}
     first_line: dict[tuple[int, int], int] = {}
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        if not raw.strip():
-            continue
-        fields = raw.split(",")
+    for lineno, fields in _csv_rows(text, path, what):
         if names is None:
-            names = _header(fields, columns, path, lineno)
+            names = _header(fields, columns, path, lineno, extra)
             continue
         if len(fields) != len(names):
             raise InputError(f"expected {len(names)} columns, got {len(fields)}", path=path, line=lineno)
         values: dict[str, float] = {}
         for name, field in zip(names, fields):
+            if name not in columns:  # a further column (``extra``): not read
+                continue
             try:
                 v = number(field.strip())
             except ValueError:
@@ -120,14 +147,16 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
     return rows
 
 
-def read_tools_csv(path: str | os.PathLike) -> dict[int, np.ndarray]:
+def read_tools_csv(path: str | os.PathLike, extra: list[str] | None = None) -> dict[int, np.ndarray]:
     """Read instrument annotations (see the module doc).
 
     Returns frame number -> float array ``(k, 4)`` of ``x, y, scale, angle`` (angle wrapped to
     ``[0, 2*pi)``), frames ascending, the rows of a frame in the order of their ``tool`` index.
+    Further columns are not read; their names are added to ``extra`` when it is given (a list).
     """
     path = Path(path)
-    rows = _read_rows(path, TOOLS_COLUMNS, "tool", "an instrument annotation file", "no annotations")
+    extra = [] if extra is None else extra
+    rows = _read_rows(path, TOOLS_COLUMNS, "tool", "an instrument annotation file", "no annotations", extra)
     return {frame: np.array([[v["x"], v["y"], v["scale"], wrap_angle(v["angle"])]
                              for _, v in sorted(rows[frame].items())], dtype=float).reshape(-1, 4)
             for frame in sorted(rows)}

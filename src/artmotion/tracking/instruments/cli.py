@@ -16,6 +16,35 @@ tool_app = typer.Typer(help="Surgical instruments: learn a head detector from an
                        no_args_is_help=True)
 
 
+def _read_annotations(path: Path) -> dict:
+    """:func:`~artmotion.tracking.instruments.annotations.read_tools_csv`, saying on stderr which of
+    the file's columns it does not read (an export's ``label``, ``visible``: not taken into account)."""
+    from artmotion.tracking.instruments.annotations import read_tools_csv
+
+    extra: list[str] = []
+    heads = read_tools_csv(path, extra)
+    if extra:
+        typer.echo(f"note: {path}: column{'s' if len(extra) > 1 else ''} {', '.join(map(repr, extra))} not read "
+                   "(only frame,tool,y,x,scale,angle are)", err=True)
+    return heads
+
+
+def _depth(paths) -> int | None:
+    """The bit depth of 16-bit frames (:func:`~artmotion.tracking.instruments.track.frame_depth`),
+    said on stderr when they are read as fewer than 16 bits (a 12-bit camera's 0-4095 read by their
+    top 8 bits are nearly black)."""
+    from artmotion.tracking.instruments.track import frame_depth
+
+    depth = frame_depth(paths) if paths else None
+    if depth is None:
+        return None
+    bits, top = depth
+    if bits < 16:
+        typer.echo(f"note: 16-bit frames with values up to {top} (in the first ones): read as {bits}-bit, "
+                   f"{2**bits - 1} scaled to 255", err=True)
+    return bits
+
+
 def _numbered_frames(source: str):
     """``(sequence, frame numbers)``: an image folder's frames are numbered by their file names'
     numbers (as in tools.csv; by position when some are missing); a video's are None
@@ -48,8 +77,6 @@ def train(
 ):
     """Learn an instrument-head detector (a small network trained on the CPU) from annotated frames."""
     from artmotion.errors import check_seed
-    from artmotion.io.media import read_image
-    from artmotion.tracking.instruments.annotations import read_tools_csv
 
     check_range("--epochs", epochs, 1, 1000, integer=True)
     check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
@@ -60,7 +87,7 @@ def train(
     from artmotion.tracking.instruments.detector import ToolDetector, need_torch
 
     need_torch()
-    heads = read_tools_csv(tools_csv)
+    heads = _read_annotations(tools_csv)
     seq, numbers = _numbered_frames(frames)
     if numbers is None:
         raise InputError("FRAMES must be a folder of frames (the annotations name frames by number)", path=frames)
@@ -69,12 +96,17 @@ def train(
     used = [n for n in sorted(heads) if n in by_number]
     if not used:
         raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
-    imgs = [read_image(by_number[n]) for n in used]
+    from artmotion.tracking.instruments.detector import check_frame_size
+    from artmotion.tracking.instruments.track import read_frame
+
+    bits = _depth([by_number[n] for n in used])   # (tool track reads its frames the same way)
+    imgs = [read_frame(by_number[n], bits) for n in used]
     (H, W), _ = Counter(img.shape[:2] for img in imgs).most_common(1)[0]
     for n, img in zip(used, imgs):  # one detector, one frame size: the odd frame named
         if img.shape[:2] != (H, W):
             raise InputError(f"image size {img.shape[1]}x{img.shape[0]} differs from the other training frames' "
                              f"{W}x{H}", path=by_number[n])
+    check_frame_size(H, W, path=frames)
     for n, img in zip(used, imgs):  # a head is where the tool is seen: inside its frame
         h, w = img.shape[:2]
         out = [(x, y) for x, y in heads[n][:, :2] if not (0 <= x < w and 0 <= y < h)]
@@ -82,7 +114,7 @@ def train(
             raise InputError(f"frame {n}: a head at ({out[0][0]:g}, {out[0][1]:g}) lies outside the {w}x{h} frame",
                              path=tools_csv)
     if len(used) < len(heads):
-        typer.echo(f"note: {len(heads) - len(used)} annotated frame(s) have no image in {frames} and are left out")
+        typer.echo(f"note: {len(heads) - len(used)} annotated frame(s) have no image in {frames} and are left out", err=True)
 
     def progress(epoch: int, total: int, loss: float) -> None:
         if sys.stderr.isatty():
@@ -123,17 +155,19 @@ def track(
     det = ToolDetector.load(model)
     if threshold is not None:
         det.threshold = threshold
+    bits = _depth(seq.images)
     tracker = ToolTracker(det)
     t0 = time.perf_counter()
     pred = {numbers[i - 1] if numbers else i: rows
             for i, rows in track_sequence(seq, det, sys.stderr.isatty() if progress is None else progress,
-                                          tracker=tracker)}
+                                          tracker=tracker, bits=bits)}
     seconds = time.perf_counter() - t0
     write_predictions(out, pred)
     if tracker.capped:
         typer.echo(f"note: on {tracker.capped} frame(s) the detector found more heads than the {det.max_heads_} a "
                    f"frame the model reports and left out a likely one (score {tracker.birth} or more): train it on "
-                   "frames that show as many instruments")
+                   "frames that show as many instruments", err=True)
+    _say_unlike(det, tracker, seq)
     heads = sum(len(r) for r in pred.values())
     ids = len({int(t) for r in pred.values() for t in r[:, 0]})
     why = too_short(heads, len(pred), CONFIRM_HITS, "a head")
@@ -145,6 +179,25 @@ def track(
                   "(the same view assumed)")
     typer.echo(f"{len(pred)} frames, {heads} heads of {ids} instruments{why} in {seconds:.1f} s "
                f"({len(pred) / max(seconds, 1e-9):.1f} frames/s){scaled}; wrote {out}")
+
+
+def _say_unlike(det, tracker, seq) -> None:
+    """Notes on stderr when the frames are unlike the model's training frames: nearly black, grey
+    for a colour model (or colour for a grey one), upright for a model of wide frames (or wide for
+    upright ones)."""
+    from artmotion.tracking.instruments.track import DARK
+
+    if tracker.first_max is not None and tracker.first_max < DARK:
+        typer.echo(f"note: the frames are nearly black (the first one's brightest value is {tracker.first_max} of "
+                   "255): the detector may find nothing", err=True)
+    grey = getattr(det, "grey_", None)
+    if grey is not None and tracker.first_grey is not None and grey != tracker.first_grey:
+        typer.echo(f"note: the frames are {'grey' if tracker.first_grey else 'in colour'}, the model's training frames "
+                   f"{'grey' if grey else 'in colour'}: its detections may be poor", err=True)
+    h, w = det.frame_shape_
+    if (seq.height > seq.width and w > h) or (seq.width > seq.height and h > w):
+        typer.echo(f"note: frames of {seq.width}x{seq.height} for a model trained on frames of {w}x{h} (turned): "
+                   "its detections may be poor", err=True)
 
 
 @tool_app.command("eval")
@@ -163,13 +216,13 @@ def evaluate(
     not scored."""
     import json
 
-    from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv
+    from artmotion.tracking.instruments.annotations import read_predictions
     from artmotion.tracking.instruments.evaluate import evaluate_tools, format_report
 
     check_range("--radius", radius, 0.0, 1e6, lo_open=True)
     if fps is not None:
         check_range("--fps", fps, 0.0, 1e9, lo_open=True)
-    truth, predictions = read_tools_csv(gt), read_predictions(pred)
+    truth, predictions = _read_annotations(gt), read_predictions(pred)
     try:
         res = evaluate_tools(truth, predictions, radius=radius, fps=fps)
     except InputError as exc:   # the frames of the two files do not meet

@@ -24,10 +24,11 @@ from artmotion.errors import InputError, check_range, check_seed, float_array, n
 from artmotion.io.media import check_frame
 from artmotion.io.mot import MAX_BOXES_PER_FRAME
 
-__all__ = ["ToolDetector", "finite_rows", "need_torch"]
+__all__ = ["ToolDetector", "check_frame_size", "finite_rows", "is_grey", "need_torch"]
 
 _FORMAT = "artmotion-tool-detector-1"
 _MAX_SIDE = 8192    # the largest frame side a model is trained on (8K video)
+_MIN_SIDE = 32      # the smallest: 4 cells of the network's output (4 * net.STRIDE)
 _MAX_HEADS = MAX_BOXES_PER_FRAME  # the most rows a frame of a predictions file may hold
 
 
@@ -67,6 +68,23 @@ def _check_heads(heads, i: int, shape: tuple[int, ...]) -> np.ndarray:
     return H
 
 
+def check_frame_size(h: int, w: int, path=None) -> None:
+    """An :class:`InputError` (naming ``path``, the frames) unless frames of ``w`` x ``h`` can be
+    trained on: at least 32 pixels a side (4 cells of the network's output), at most 8192."""
+    if h < _MIN_SIDE or w < _MIN_SIDE:
+        raise InputError(f"frames of {w}x{h} are too small (a detector is trained on frames of at least "
+                         f"{_MIN_SIDE}x{_MIN_SIDE} pixels)", path=path)
+    if max(h, w) > _MAX_SIDE:
+        raise InputError(f"frames of {w}x{h} are too large (at most {_MAX_SIDE} pixels a side)", path=path)
+
+
+def is_grey(frame: np.ndarray, tolerance: int = 3) -> bool:
+    """Whether a BGR frame shows no colour: its three channels differ by at most ``tolerance`` anywhere
+    (a grey picture saved as colour, a JPEG's rounding)."""
+    f = frame.astype(np.int16)
+    return bool(np.abs(f[..., 0] - f[..., 1]).max() <= tolerance and np.abs(f[..., 1] - f[..., 2]).max() <= tolerance)
+
+
 def need_torch() -> None:
     """An :class:`InputError` saying how to install PyTorch when it is missing (the ``tools`` extra)."""
     need_package("torch", "tools", "the tool commands")
@@ -86,6 +104,8 @@ class ToolDetector:
 
     ``left_out_``: after :meth:`detect_batch`, the score of the best peak the cap left out on each
     of its frames (0 where none), so that a caller can say when the cap dropped a likely head.
+    ``grey_``: whether every training frame was grey (:func:`is_grey`; None for a model saved
+    before it was kept), so that a caller can say when frames are unlike them.
     """
 
     def __init__(self, epochs: int = 30, batch: int = 8, lr: float = 3e-3, threshold: float = 0.05,
@@ -131,10 +151,8 @@ class ToolDetector:
             raise InputError(f"training frame {i} has {most} heads, more than the {cap} a frame the detector reports "
                              "(max_heads)")
         h, w = shape[:2]
-        if h < 4 * net.STRIDE or w < 4 * net.STRIDE:
-            raise InputError(f"frames of {w}x{h} are too small")
-        if max(h, w) > _MAX_SIDE:
-            raise InputError(f"frames of {w}x{h} are too large (at most {_MAX_SIDE} pixels a side)")
+        assert _MIN_SIDE == 4 * net.STRIDE
+        check_frame_size(h, w)
         torch.manual_seed(self.seed)
         rng = np.random.default_rng(self.seed)
         model = net.HeadNet(self.width)
@@ -163,6 +181,7 @@ class ToolDetector:
         self.model_ = model
         self.max_heads_ = cap
         self.frame_shape_ = (h, w)
+        self.grey_: bool | None = all(is_grey(f) for f in frames)
         self.train_seconds_ = time.perf_counter() - t0
         return self
 
@@ -222,6 +241,8 @@ class ToolDetector:
         self._check_fitted()
         state = {"format": _FORMAT, "width": self.width, "threshold": self.threshold, "max_heads": self.max_heads_,
                  "frame_shape": list(self.frame_shape_), "weights": self.model_.state_dict()}
+        if getattr(self, "grey_", None) is not None:
+            state["grey"] = bool(self.grey_)
         buf = io.BytesIO()      # torch.save on a full disk raises a RuntimeError of its own; a file's write an OSError
         torch.save(state, buf)
         with atomic_path(path) as tmp:
@@ -251,6 +272,9 @@ class ToolDetector:
             model.load_state_dict(state["weights"])
             h, w = (int(v) for v in state["frame_shape"])
             det.frame_shape_ = (h, w)
+            det.grey_ = state.get("grey")   # (absent in models saved before 2026-12: unknown)
+            if det.grey_ is not None and not isinstance(det.grey_, bool):
+                raise TypeError("grey")
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             raise InputError(f"damaged tool model ({type(exc).__name__})", path=p) from None
         # what training writes: a score in (0, 1), a few heads, the size frames were scaled to

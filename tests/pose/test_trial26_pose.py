@@ -1,0 +1,133 @@
+"""Trial 26: crops in number order without hidden files, boxes and --steps where they do not apply,
+a model of a few near-identical crops says what its variance is worth, labels matched like boxes."""
+
+import cv2
+import numpy as np
+import pytest
+
+from artmotion.errors import InputError
+from artmotion.pose.data import list_images, load_labelled, read_labels
+from artmotion.pose.model import CALIBRATED_MIN, PoseRegressor
+
+NAMES = ["yaw", "opening"]
+
+
+def _crops(folder, names, seed=0, size=(40, 32)):
+    """Noise crops named ``names``, each with a bright bar whose angle is its label."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    labels = {}
+    for k, name in enumerate(names):
+        img = rng.integers(0, 60, (size[1], size[0], 3), dtype=np.uint8)
+        a = float(rng.uniform(0, 180))
+        c, s = np.cos(np.radians(a)), np.sin(np.radians(a))
+        cv2.line(img, (int(20 - 15 * c), int(16 - 15 * s)), (int(20 + 15 * c), int(16 + 15 * s)), (255, 255, 255), 3)
+        cv2.imwrite(str(folder / name), img)
+        labels[name] = (a, float(k % 7))
+    return labels
+
+
+def _labels_csv(path, labels, rename=lambda n: n):
+    path.write_text("image," + ",".join(NAMES) + "\n"
+                    + "".join(f"{rename(n)},{a:.3f},{b:.3f}\n" for n, (a, b) in labels.items()))
+    return path
+
+
+def test_crops_are_listed_in_number_order_without_hidden_files(tmp_path, run_cli):
+    """'10.png' came before '2.png' (text order), so --smooth smoothed a scrambled sequence; a macOS
+    '._1.png' beside the crops made predict fail ('cannot decode image') and train ('no label')."""
+    names = [f"{i}.png" for i in (1, 2, 3, 10, 11, 20)] + [f"{i}.png" for i in range(4, 10)]
+    labels = _crops(tmp_path / "crops", names)
+    (tmp_path / "crops" / "._1.png").write_bytes(b"\x00\x05\x16\x07 macOS resource fork")
+    assert [p.name for p in list_images(tmp_path / "crops")] == [f"{i}.png" for i in range(1, 12)] + ["20.png"]
+    csv = _labels_csv(tmp_path / "labels.csv", labels)
+    code, out, err = run_cli("pose", "train", tmp_path / "crops", csv, "--model", tmp_path / "m.npz")
+    assert code == 0, err
+    code, out, err = run_cli("pose", "predict", tmp_path / "m.npz", tmp_path / "crops", "--out", tmp_path / "p.csv",
+                             "--smooth")
+    assert code == 0, err
+    _, images, _ = read_labels(tmp_path / "p.csv")
+    assert images == [f"{i}.png" for i in range(1, 12)] + ["20.png"]
+
+
+def test_hog_ignores_the_sets_boxes_and_refuses_steps(tmp_path, run_cli):
+    """hog and lbp do not use boxes: a set without boxes.csv beside one with it is no error for them
+    (it still is for cnn); --steps (the cnn network's) is refused with them, as --boxes is."""
+    for k, with_boxes in enumerate((True, False)):
+        d = tmp_path / f"set{k}"
+        labels = _crops(d / "crops", [f"{i:06d}.png" for i in range(1, 13)], seed=k)
+        _labels_csv(d / "labels.csv", labels)
+        if with_boxes:
+            (d / "boxes.csv").write_text("image,x,y,w,h,frame_w,frame_h\n"
+                                         + "".join(f"{n},10,10,40,32,320,240\n" for n in labels))
+    sets = ("--set", tmp_path / "set0", "--set", tmp_path / "set1")
+    for feature in ("hog", "lbp"):
+        code, out, err = run_cli("pose", "train", *sets, "--feature", feature, "--model", tmp_path / f"{feature}.npz")
+        assert code == 0 and "from 2 sequences" in out, err
+        code, out, err = run_cli("pose", "train", *sets, "--feature", feature, "--steps", 100,
+                                 "--model", tmp_path / "x.npz")
+        assert code == 2 and err.count("\n") == 1 and f"--steps needs --feature cnn (the {feature} feature" in err, err
+    code, out, err = run_cli("pose", "train", *sets, "--feature", "cnn", "--model", tmp_path / "x.npz")
+    assert code == 2 and "boxes for some training sequences but not for all" in err, err
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_a_model_of_a_few_near_identical_crops_says_its_variance_means_little(tmp_path, run_cli):
+    """Trained on 4 renders of nearly one pose, a model gave every other crop a std of 0.02° while
+    erring by 37°, without a word: its variance is uncalibrated (too few crops to hold any out) and,
+    far from its training crops, only the tiny spread of its training angles."""
+    rng = np.random.default_rng(3)
+    base = rng.integers(0, 255, (32, 40, 3), dtype=np.uint8)
+    (tmp_path / "few").mkdir()
+    rows = []
+    for i in range(4):
+        img = np.clip(base.astype(int) + rng.integers(-2, 3, base.shape), 0, 255).astype(np.uint8)
+        cv2.imwrite(str(tmp_path / "few" / f"{i:06d}.png"), img)
+        rows.append(f"{i:06d}.png,{25 + 0.01 * i},{50 - 0.01 * i}")
+    (tmp_path / "few.csv").write_text("image,yaw,opening\n" + "\n".join(rows) + "\n")
+    code, out, err = run_cli("pose", "train", tmp_path / "few", tmp_path / "few.csv", "--model", tmp_path / "m.npz")
+    assert code == 0, err
+    assert "4 crops are too few to calibrate the standard deviations" in err and str(CALIBRATED_MIN) in err
+    _crops(tmp_path / "other", [f"{i:06d}.png" for i in range(6)], seed=9)
+    code, out, err = run_cli("pose", "predict", tmp_path / "m.npz", tmp_path / "other", "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    assert "6 of 6 crops are far from every training crop" in err and "yaw 0.0" in err, err
+    # a model's own training crops are not far from it
+    reg = PoseRegressor.load(tmp_path / "m.npz")
+    _, std = reg.predict(reg.features(np.stack([cv2.imread(str(p)) for p in list_images(tmp_path / "few")])),
+                         return_std=True)
+    assert not reg.far_from_training(std).any()
+
+
+@pytest.mark.parametrize("n, calibrated", [(CALIBRATED_MIN - 1, False), (CALIBRATED_MIN, True)])
+def test_the_fewest_crops_whose_variance_is_calibrated(n, calibrated):
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(n, 5))
+    reg = PoseRegressor(method="exact", n_components=None).fit(X, X[:, :2] @ np.ones((2, 1)))
+    assert (reg.gp_.held_out is not None) == calibrated
+
+
+def test_labels_name_crops_with_or_without_their_extension(tmp_path):
+    """A label '000001' or '000001.PNG' for the crop '000001.png' was 'image has no label' (boxes.csv
+    was matched without the extension); exact names still match, and one label for two crops is an
+    error naming both."""
+    names = [f"{i:06d}.png" for i in range(1, 5)]
+    labels = _crops(tmp_path / "crops", names)
+    forms = {names[0]: "000001", names[1]: "000002.PNG", names[2]: "000003.png", names[3]: "000004.jpg"}
+    csv = _labels_csv(tmp_path / "l.csv", labels, forms.get)
+    got_names, paths, imgs, Y = load_labelled(tmp_path / "crops", csv)
+    assert [p.name for p in paths] == names and len(imgs) == 4
+    np.testing.assert_allclose(Y, [labels[n] for n in names], atol=1e-3)
+    # a second crop of number 1: the label '000001' would name both
+    cv2.imwrite(str(tmp_path / "crops" / "000001.jpg"), cv2.imread(str(tmp_path / "crops" / names[0])))
+    with pytest.raises(InputError, match=r"label '000001' names two images: 000001.jpg and 000001.png") as info:
+        load_labelled(tmp_path / "crops", csv)
+    assert info.value.path == str(csv)
+    # with its own exact label each is matched
+    labels["000001.jpg"] = (1.0, 2.0)
+    load_labelled(tmp_path / "crops", _labels_csv(tmp_path / "exact.csv", labels))
+    # two labels for one crop, neither exact
+    (tmp_path / "crops" / "000001.jpg").unlink()
+    (tmp_path / "two.csv").write_text((tmp_path / "l.csv").read_text() + "000001.PNG,1,2\n")
+    with pytest.raises(InputError, match=r"labels '000001' and '000001.PNG' both name image 000001.png"):
+        load_labelled(tmp_path / "crops", tmp_path / "two.csv")

@@ -13,7 +13,6 @@ import subprocess
 import sys
 import textwrap
 
-import cv2
 import pytest
 
 from artmotion.app import EventIndex, run_pipeline
@@ -24,20 +23,9 @@ from artmotion.errors import InputError
 def small_sequence(dst, n=5):
     """The first ``n`` frames of the sample as a MOTChallenge folder with its detections."""
     from conftest import SAMPLE
+    from test_pipeline import small_sequence as first_frames
 
-    (dst / "img1").mkdir(parents=True)
-    (dst / "det").mkdir()
-    cap = cv2.VideoCapture(str(SAMPLE / "TUD-Campus.mp4"))
-    for i in range(1, n + 1):
-        ok, frame = cap.read()
-        assert ok
-        cv2.imwrite(str(dst / "img1" / f"{i:06d}.jpg"), frame)
-    cap.release()
-    rows = [line for line in (SAMPLE / "det" / "det.txt").read_text().splitlines() if int(line.split(",")[0]) <= n]
-    (dst / "det" / "det.txt").write_text("\n".join(rows) + "\n")
-    ini = (SAMPLE / "seqinfo.ini").read_text()
-    (dst / "seqinfo.ini").write_text(ini.replace("seqLength=71", f"seqLength={n}").replace("TUD-Campus", dst.name))
-    return dst
+    return first_frames(SAMPLE, dst, n)
 
 
 def make_run(root, name, sentences, source=None):

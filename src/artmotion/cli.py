@@ -11,6 +11,7 @@ import copy
 import os
 import re
 import sys
+from pathlib import Path
 
 import typer
 
@@ -156,6 +157,21 @@ class _Stdout:
         return getattr(self._stream, name)
 
 
+def _note_slashed(args: list[str]) -> None:
+    """Tell the output layer which names the command line gave with a slash at the end
+    (:data:`artmotion.io.atomic.SLASHED`): a command's ``Path`` option loses it (``--model newdir/``
+    wrote a file called ``newdir``)."""
+    slashed = set()
+    for arg in args:
+        value = arg.split("=", 1)[1] if arg.startswith("--") and "=" in arg else arg
+        if len(value) > 1 and value.endswith(("/", os.sep)):
+            slashed |= {value.rstrip("/" + os.sep), os.fspath(Path(value))}
+    if slashed:     # (imported only then: --help stays light)
+        from artmotion.io import atomic
+
+        atomic.SLASHED.update(slashed)
+
+
 def run() -> None:
     """The console script (and ``python -m artmotion``): :func:`main`, then exit with its status.
 
@@ -204,6 +220,7 @@ def _main(argv: list[str] | None) -> int:
             previous[sig] = signal.signal(sig, _terminate)
         except ValueError:      # not the main thread (a test runner, an embedding program)
             pass
+    _note_slashed(sys.argv[1:] if argv is None else argv)
     stdout = sys.stdout
     if stdout is not None and not isinstance(stdout, _Stdout):
         sys.stdout = _Stdout(stdout)

@@ -441,15 +441,15 @@ def test_an_interrupted_move_into_a_folder_takes_the_new_outputs_out(tmp_path, m
     out = tmp_path / "mine"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
-    real_rename, calls = os.rename, []
+    real_move, calls = atomic._move_new, []
 
-    def rename_then_interrupt(src, dst):
-        real_rename(src, dst)
+    def move_then_interrupt(src, dst):
+        real_move(src, dst)
         calls.append(dst)
         if len(calls) == 2:
             raise _Interrupt
 
-    monkeypatch.setattr(atomic.os, "rename", rename_then_interrupt)
+    monkeypatch.setattr(atomic, "_move_new", move_then_interrupt)
     with pytest.raises(_Interrupt):
         with atomic_dir(out, outputs=("a.txt", "b.txt", "c.txt")) as tmp:
             for name in ("a.txt", "b.txt", "c.txt"):
@@ -502,7 +502,7 @@ def test_an_output_named_by_a_link_is_written_through_it(tmp_path):
     stream = tmp_path / "out.csv"
     stream.symlink_to("/proc/self/fd/1")
     for call in (lambda: check_writable(stream), lambda: atomic_write(stream).__enter__()):
-        with pytest.raises(InputError, match="a link to a device or to a stream of the process"):
+        with pytest.raises(InputError, match="a link to a stream of the process"):
             call()
     assert stream.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["latest.csv", "out.csv", "target.csv"]
 
@@ -533,3 +533,55 @@ def test_a_frame_folder_leaves_hidden_files_out_and_names_two_frames_of_one_numb
     cv2.imwrite(str(tmp_path / "frame2.png"), img)
     with pytest.raises(InputError, match=r"two images have frame number 2: 000002.png and frame2.png"):
         open_sequence(tmp_path)
+
+
+def test_a_name_another_writer_made_meanwhile_is_not_replaced(tmp_path, monkeypatch):
+    """Two writers into one folder: the names were checked free and then renamed in, so a name the
+    other writer made between the two was replaced without a word. A file is linked in (which never
+    replaces a name) and a folder claims its name first; the other writer's outputs stay."""
+    from artmotion.io import atomic
+    from artmotion.io.atomic import atomic_dir
+
+    out = tmp_path / "out"
+    out.mkdir()
+    real_check = atomic._check_free
+
+    def check_then_other_writer(folder, names):
+        real_check(folder, names)
+        if folder == out and not (out / "a.txt").exists():
+            (out / "a.txt").write_text("the other writer's")
+            (out / "sub").mkdir()
+
+    monkeypatch.setattr(atomic, "_check_free", check_then_other_writer)
+    for name in ("a.txt", "sub"):
+        with pytest.raises(InputError, match=f"{name}: exists, in a folder that is not only"):
+            with atomic_dir(out, outputs=(name,)) as tmp:
+                (tmp / "a.txt").write_text("mine") if name == "a.txt" else (tmp / "sub").mkdir()
+        monkeypatch.setattr(atomic, "_check_free", real_check)
+    assert (out / "a.txt").read_text() == "the other writer's" and sorted(p.name for p in out.iterdir()) == ["a.txt", "sub"]
+
+
+def test_a_long_extension_and_a_long_run_name_get_temporary_names(tmp_path):
+    """A name whose 'extension' is 246 bytes looped for ever cutting the temporary name's prefix;
+    the temporary folders of a long-named run were not found as stale (their names are cut)."""
+    from artmotion.io.atomic import _fresh, stale_dirs
+
+    with atomic_write(tmp_path / ("a." + "b" * 245)) as fh:
+        fh.write("x")
+    assert (tmp_path / ("a." + "b" * 245)).read_text() == "x"
+    run = tmp_path / ("v" * 246)
+    left = _fresh(tmp_path, f".{run.name}.", ".tmp", True, [])
+    assert stale_dirs(run) == [left]
+
+
+def test_a_file_output_given_with_a_slash_on_the_command_line_is_refused(tmp_path, run_cli):
+    """A command's Path option drops the slash of ``--model newdir/`` before the output is written:
+    a file called ``newdir`` was written."""
+    from artmotion.io import atomic
+
+    try:
+        code, _, err = run_cli("slam", "simulate", "--runs", 1, "--steps", 5, "--plot", f"{tmp_path}/p.png/")
+    finally:
+        atomic.SLASHED.clear()
+    assert code == 2 and "p.png: ends with a slash" in err, err
+    assert list(tmp_path.iterdir()) == []

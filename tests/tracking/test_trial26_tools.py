@@ -136,3 +136,28 @@ def test_too_small_training_frames_are_named(tmp_path, run_cli):
 def _write(path, text):
     path.write_text(text)
     return path
+
+
+def test_a_16_bit_sequence_that_starts_dark_is_not_read_as_fewer_bits(tmp_path):
+    """Frames of a full 16-bit range whose first five stay dark (a fade-in) were taken for 8-bit
+    ones, and every later frame read as white: a depth is read only from values using its top bit,
+    and a later frame beyond the depth read is an error, not clipped."""
+    from artmotion.errors import InputError
+    from artmotion.tracking.instruments.track import frame_depth, read_frame
+
+    paths = []
+    for k, top in enumerate([50] * 5 + [20000, 60000]):
+        p = tmp_path / f"{k:03d}.png"
+        cv2.imwrite(str(p), np.full((8, 8, 3), top, np.uint16))
+        paths.append(p)
+    assert frame_depth(paths) == (16, 50)
+    assert int(read_frame(paths[6], 16).max()) == 60000 >> 8
+    twelve = []
+    for k, top in enumerate([3000] * 5 + [5000]):
+        p = tmp_path / f"t{k:03d}.png"
+        cv2.imwrite(str(p), np.full((8, 8, 3), top, np.uint16))
+        twelve.append(p)
+    assert frame_depth(twelve) == (12, 3000)
+    assert int(read_frame(twelve[0], 12).max()) == round(3000 * 255 / 4095)
+    with pytest.raises(InputError, match="values up to 5000, above the 12 bits"):
+        read_frame(twelve[5], 12)

@@ -313,11 +313,12 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
     the head's size), entries and exits from the tracks, opening and closing from the heads' crops
     where the pose model applies."""
     from artmotion.language.describe import events_from_tracks
-    from artmotion.tracking.instruments.track import to_mot, track_sequence
+    from artmotion.tracking.instruments.track import frame_depth, to_mot, track_sequence
     from artmotion.tracking.video import write_annotated
 
     t0 = time.perf_counter()
-    tracks = to_mot(list(track_sequence(seq, tools, progress)))
+    bits = frame_depth(seq.images) if seq.images is not None else None    # (as tool train and track read them)
+    tracks = to_mot(list(track_sequence(seq, tools, progress, bits=None if bits is None else bits[0])))
     fps = len(seq) / max(time.perf_counter() - t0, 1e-9)
     events = events_from_tracks(tracks, (seq.width, seq.height))
     if video:

@@ -16,8 +16,9 @@ followed by a unit (``time_s``, ``x_m``, also ``x(mm)``). A header with any othe
 column taken for another one gives a confident wrong answer). A unit is honoured: positions in
 ``km``, ``m``, ``cm``, ``mm``, ``um`` (``µm``), ``in`` or ``ft`` are converted to metres (``px``, pixel
 tracks, are kept as they are), times in ``s``, ``ms``, ``us`` (``µs``), ``ns``, ``min`` or ``h`` to
-seconds; the position columns share one unit (or none), a quaternion has none, and any other
-unit is an error. Values must be finite, coordinates (in metres when converted) within ``±1e12``
+seconds (also spelt out: ``meters``, ``seconds``, ``usec``); a suffix that is no unit
+(``timestamp_utc``) is read as none; the position columns share one unit (or none) and a
+quaternion has none. Values must be finite, coordinates (in metres when converted) within ``±1e12``
 and times (in seconds when converted) within ``±1e15``. Every error names the file and line.
 """
 
@@ -55,6 +56,22 @@ LENGTH_UNITS: dict[str, float | None] = {"km": 1e3, "m": 1.0, "cm": 1e-2, "mm": 
 #: time units a header may give the time column (``time_ms``), in seconds
 TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9,
                                 "min": 60.0, "h": 3600.0}
+#: other spellings of those units
+_UNIT_NAMES = {"meter": "m", "meters": "m", "metre": "m", "metres": "m", "millimeter": "mm", "millimeters": "mm",
+               "millimetre": "mm", "millimetres": "mm", "centimeter": "cm", "centimeters": "cm", "centimetre": "cm",
+               "centimetres": "cm", "μm": "µm", "second": "s", "seconds": "s", "secs": "s", "msec": "ms",
+               "usec": "us", "μs": "µs", "nsec": "ns"}
+
+
+def _unit(suffix: str | None, known) -> str | None:
+    """The unit ``suffix`` (what follows a column's name) names among ``known``, or ``None``: a
+    marker's number first is not part of it (``x1_mm``: mm), and a suffix that is no unit
+    (``timestamp_utc``, ``time_from_start``) is read as before units were honoured: as none."""
+    if suffix is None:
+        return None
+    u = re.sub(r"^[\d_\-.()\[\] ]+", "", suffix).strip("_-.()[] ")
+    u = _UNIT_NAMES.get(u, u)
+    return u if u in known else None
 
 
 @dataclass
@@ -85,7 +102,6 @@ def _header_columns(header: list[str], path, line: int) -> tuple[int | None, lis
     none), from a header's names (``time_ms``, ``x_mm``, ``x(mm)``)."""
     names = [re.sub(r"[^a-z].*", "", h) for h in header]          # the letters before a unit
     units = [h[len(n):].strip("_-.()[] ") or None for h, n in zip(header, names)]
-    units = [None if u is not None and u.isdigit() else u for u in units]   # x1, y1, z1: a marker's number
     times = [i for i, n in enumerate(names) if n in _TIME_NAMES]
     where = {n: i for i, n in enumerate(names) if n in _COORDS}
     unknown = [header[i] for i, n in enumerate(names) if n not in _TIME_NAMES and n not in _COORDS]
@@ -94,21 +110,16 @@ def _header_columns(header: list[str], path, line: int) -> tuple[int | None, lis
                 "two time columns" if len(times) > 1 else "a column named twice")
         raise InputError(f"header: {what} (columns are named x, y, z, qx, qy, qz, qw and a time column t or "
                          "time, each possibly with a unit: time_s)", path=path, line=line)
-    time_unit = units[times[0]] if times else None
-    if time_unit is not None and time_unit not in TIME_UNITS:
-        raise InputError(f"header: unknown time unit {time_unit!r} in {header[times[0]]!r} (time units: "
-                         f"{', '.join(TIME_UNITS)})", path=path, line=line)
-    quat_units = [header[i] for n, i in where.items() if n.startswith("q") and units[i] is not None]
+    time_unit = _unit(units[times[0]], TIME_UNITS) if times else None
+    quat_units = [header[i] for n, i in where.items()
+                  if n.startswith("q") and (_unit(units[i], LENGTH_UNITS) or _unit(units[i], TIME_UNITS))]
     if quat_units:
         raise InputError(f"header: {quat_units[0]!r}: a quaternion has no unit", path=path, line=line)
-    declared = {units[i] for n, i in where.items() if not n.startswith("q")}
+    declared = {_unit(units[i], LENGTH_UNITS) for n, i in where.items() if not n.startswith("q")}
     if len(declared) > 1:
         given = ", ".join(header[i] for n, i in where.items() if not n.startswith("q"))
         raise InputError(f"header: the position columns {given} must have one unit (or none)", path=path, line=line)
     length_unit = declared.pop() if declared else None
-    if length_unit is not None and length_unit not in LENGTH_UNITS:
-        raise InputError(f"header: unknown length unit {length_unit!r} (length units: {', '.join(LENGTH_UNITS)})",
-                         path=path, line=line)
     for wanted in (_COORDS[:2], _COORDS[:3], _COORDS):
         if set(where) == set(wanted):
             return (times[0] if times else None), [where[n] for n in wanted], time_unit, length_unit

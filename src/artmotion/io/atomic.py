@@ -7,6 +7,7 @@ Folders of outputs are built the same way (:func:`atomic_dir`).
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import json
 import os
@@ -33,11 +34,17 @@ def _not_regular(path: Path) -> InputError | None:
     return InputError("not a regular file (a device, pipe or socket): give the name of a file to write", path=path)
 
 
+#: the names the command line gave with a slash at the end (``--model newdir/``): a command's
+#: :class:`Path` option has lost the slash before an output is written (set by ``artmotion.cli``)
+SLASHED: set[str] = set()
+
+
 def _file_name(path: str | os.PathLike) -> Path:
-    """``path`` as a :class:`Path`, refused when it ends with a slash (``--model newdir/`` wrote a
-    file called ``newdir``: the slash says a folder was meant)."""
+    """``path`` as a :class:`Path`, refused when it ends with a slash, or was given so on the
+    command line (:data:`SLASHED`): ``--model newdir/`` wrote a file called ``newdir``, and the
+    slash says a folder was meant."""
     raw = os.fspath(path)
-    if raw.endswith(os.sep) or (os.altsep and raw.endswith(os.altsep)):
+    if raw.endswith(os.sep) or (os.altsep and raw.endswith(os.altsep)) or raw in SLASHED:
         raise InputError("ends with a slash, as a folder's name: give the name of a file to write", path=raw)
     return Path(path)
 
@@ -50,10 +57,12 @@ def _through_link(path: Path) -> Path:
     if not path.is_symlink():
         return path
     target = Path(os.path.realpath(path))
-    if target.parts[:2] in (("/", "dev"), ("/", "proc")) or os.readlink(path).startswith(("/dev/", "/proc/")):
-        raise InputError("is a link to a device or to a stream of the process (/dev/stdout and the like): "
-                         "give the name of a file to write", path=path)
-    return target
+    named = os.readlink(path)
+    if (target.parts[:2] == ("/", "proc") or named.startswith(("/proc/", "/dev/fd/"))
+            or named in ("/dev/stdin", "/dev/stdout", "/dev/stderr")):
+        raise InputError("is a link to a stream of the process (/dev/stdout and the like): give the name of "
+                         "a file to write", path=path)
+    return target   # (a device there is refused as not a regular file)
 
 
 def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
@@ -155,14 +164,17 @@ def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
 NAME_MAX = 255
 
 
-def _fitting(prefix: str, suffix: str) -> str:
+def _fitting(prefix: str, suffix: str) -> tuple[str, str]:
     """``prefix`` cut (at a character) so that ``prefix + 8 characters + suffix`` fits in
     :data:`NAME_MAX` bytes: a 246-character video name made the temporary name of its run folder
-    too long ("File name too long") although the folder's own name fitted."""
+    too long ("File name too long") although the folder's own name fitted. A ``suffix`` over 32
+    bytes is no file type's extension (``a.bbb…``): it becomes ``.tmp``."""
+    if len(os.fsencode(suffix)) > 32:
+        suffix = ".tmp"
     room = NAME_MAX - 8 - len(os.fsencode(suffix))
-    while len(os.fsencode(prefix)) > room:
+    while prefix and len(os.fsencode(prefix)) > room:
         prefix = prefix[:-1]
-    return prefix
+    return prefix, suffix
 
 
 def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path]) -> Path:
@@ -172,7 +184,7 @@ def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path
     a caller's clean-up removes it even when a signal interrupts right after the creation (the
     caller's ``try`` must hold this call); a name that turns out to be taken is removed from
     ``made`` before the next one is tried."""
-    prefix = _fitting(prefix, suffix)
+    prefix, suffix = _fitting(prefix, suffix)
     for _ in range(1000):
         name = parent / f"{prefix}{secrets.token_hex(4)}{suffix}"
         made[:] = [name]
@@ -306,8 +318,8 @@ def check_out_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | Non
     """Before long work: an :class:`InputError` when :func:`atomic_dir` (same arguments) could not
     write the output folder ``path`` — a file there, a link to nothing, an output name that exists
     in a folder of the user's files, a folder that cannot be written — without creating anything."""
-    path, _, foreign = _plan_dir(path, replace, outputs)
-    check_can_create_in(path if foreign else path.parent)
+    path, swap, foreign = _plan_dir(path, replace, outputs)
+    check_can_create_in(path if foreign or (swap and os.path.ismount(path)) else path.parent)
 
 
 def check_can_create_in(folder: Path) -> None:
@@ -391,7 +403,11 @@ def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:
         _check_free(path, names)
         for name in names:
             moved.append(name)
-            os.rename(tmp / name, path / name)
+            try:
+                _move_new(tmp / name, path / name)
+            except (FileExistsError, InputError):
+                moved.pop()             # the name another writer made: not ours to take out
+                raise
         tmp.rmdir()
     except BaseException:
         for name in moved:
@@ -399,6 +415,8 @@ def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:
         for name in aside:
             with contextlib.suppress(OSError):
                 os.rename(kept[0] / name, path / name)
+        if kept and kept[0].is_dir() and any(kept[0].iterdir()):
+            kept.clear()        # an earlier output that could not be put back stays where it waits
         raise
 
 
@@ -427,6 +445,36 @@ def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()
     return test
 
 
+def _move_new(src: Path, dst: Path) -> None:
+    """Move ``src`` to the name ``dst``, which must not exist (another writer may just have made
+    it: a check before a rename does not hold it): a file is linked there and unlinked (a link never
+    replaces a name), a folder claims the name with an empty folder and is renamed onto it. Where
+    the file system has no hard links (FAT, exFAT) the file is renamed unless the name exists."""
+    try:
+        if src.is_dir() and not src.is_symlink():
+            os.mkdir(dst)
+            try:
+                os.rename(src, dst)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    os.rmdir(dst)
+                raise
+            return
+        try:
+            os.link(src, dst, follow_symlinks=False)
+        except FileExistsError:
+            raise
+        except OSError:
+            if os.path.lexists(dst):
+                raise FileExistsError(errno.EEXIST, "File exists", os.fspath(dst)) from None
+            os.rename(src, dst)
+            return
+        os.unlink(src)
+    except FileExistsError:
+        _check_free(dst.parent, [dst.name])
+        raise
+
+
 def _check_free(folder: Path, names: Iterable[str]) -> None:
     """An :class:`InputError` naming the first of ``names`` that already exists in ``folder`` (a
     folder that is not only the command's earlier outputs: nothing in it is replaced), and what
@@ -448,7 +496,7 @@ def _check_free(folder: Path, names: Iterable[str]) -> None:
 
 def _temporary(name: str, of: str) -> bool:
     """``name`` is one of the temporary names :func:`atomic_dir` makes for the folder ``of``."""
-    return name.startswith(_fitting(f".{of}.", ".tmp")) and name.endswith(".tmp")
+    return name.startswith(_fitting(f".{of}.", ".tmp")[0]) and name.endswith(".tmp")
 
 
 def stale_dirs(path: str | os.PathLike) -> list[Path]:
@@ -456,10 +504,11 @@ def stale_dirs(path: str | os.PathLike) -> list[Path]:
     was killed (``.NAME.xxxxxxxx.tmp``; not ``.old.tmp``, which may hold the previous outputs):
     nothing else writes such names. Remove them only when no writer of ``path`` can still run."""
     path = Path(path)
-    pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}\.tmp")
+    prefix = _fitting(f".{path.name}.", ".tmp")[0]    # (cut as _fresh cuts a long name's)
+    pattern = re.compile(re.escape(prefix) + r"[a-z0-9_]{8}\.tmp")
     if not path.parent.is_dir():
         return []
-    return [p for p in path.parent.glob(f".{glob.escape(path.name)}.*.tmp") if p.is_dir() and pattern.fullmatch(p.name)]
+    return [p for p in path.parent.glob(f"{glob.escape(prefix)}*.tmp") if p.is_dir() and pattern.fullmatch(p.name)]
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Path:

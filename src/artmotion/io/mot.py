@@ -111,8 +111,9 @@ def mot_columns(path: str | os.PathLike) -> int:
     return max(widths, default=0)
 
 
-#: MOT16/17's class of a pedestrian (column 8 of its ground truth)
+#: MOT16/17's class of a pedestrian (column 8 of its ground truth), and its classes
 MOT17_PEDESTRIAN = 1
+MOT17_CLASSES = frozenset(range(1, 14))
 
 
 def mot17_people(rows: np.ndarray) -> np.ndarray:

@@ -46,7 +46,7 @@ def describe_cmd(
     """Describe tracks in sentences: who enters, exits, moves where, merges, splits, walks together."""
     from artmotion.io import read_events, read_mot
     from artmotion.io.media import MAX_FPS, MIN_FPS
-    from artmotion.io.mot import MAX_ID, check_ids, mot17_people, mot_columns
+    from artmotion.io.mot import MAX_ID, MOT17_CLASSES, check_ids, mot17_people, mot_columns
     from artmotion.io.table import MAX_ANGLE
     from artmotion.language.describe import check_image_size, describe, parse_classes, read_pose
 
@@ -60,7 +60,8 @@ def describe_cmd(
     if pose_track is not None:
         check_range("--pose-track", pose_track, -MAX_ID, MAX_ID, integer=True)
     rows = read_mot(results)
-    if len(rows) and mot_columns(results) == 9:   # MOT16/17 ground truth: occluders, reflections, ... are no people
+    if len(rows) and mot_columns(results) == 9 and all(int(c) == c and c in MOT17_CLASSES for c in rows[:, 7]):
+        # MOT16/17 ground truth (its classes 1-13 in column 8): occluders, reflections, ... are no people
         people = mot17_people(rows)
         typer.echo(f"{results}: MOT16/17 ground truth: {len(people)} of {len(rows)} rows described (pedestrians "
                    "with consider = 1)", err=True)

@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from artmotion.errors import InputError
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
-from artmotion.io.mot import MOT17_PEDESTRIAN, check_ids, check_mot_rows, mot_columns
+from artmotion.io.mot import MOT17_CLASSES, MOT17_PEDESTRIAN, check_ids, check_mot_rows, mot_columns
 
 __all__ = ["apply_rules", "check_ids", "check_rules", "columns_of", "evaluate", "evaluate_sequences", "format_table",
            "gt_rules", "HOTA_ALPHAS", "METRIC_ORDER"]
@@ -49,7 +49,6 @@ METRIC_ORDER = (
 
 
 #: MOT16/17 classes: 1 pedestrian ... 13; a result box on one of these is not a false positive.
-MOT17_CLASSES = frozenset(range(1, 14))
 MOT17_DISTRACTORS = (2, 7, 8, 12)
 RULES = ("auto", "mot15", "mot17")
 

@@ -70,25 +70,36 @@ class _Head:
 
 def frame_depth(paths) -> tuple[int, int] | None:
     """``(bits, largest value)`` of a sequence of 16-bit image files, from its first
-    :data:`DEPTH_FRAMES` frames: the fewest of :data:`DEPTHS` bits that hold their largest value (a
-    12-bit camera's 0-4095 in a 16-bit PNG: 12); None for 8-bit frames."""
+    :data:`DEPTH_FRAMES` frames: the one of :data:`DEPTHS` whose top bit their largest value uses
+    (a 12-bit camera's 2048-4095 in a 16-bit PNG: 12), else 16; None for 8-bit frames."""
     top = -1
     for p in list(paths)[:DEPTH_FRAMES]:
         img = read_image(p, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
         if img.dtype != np.uint16:
             return None
         top = max(top, int(img.max()))
-    return None if top < 0 else (next(b for b in DEPTHS if top < 2**b), top)
+    if top < 0:
+        return None
+    # a depth is read only from values that use its top bit: frames that start dark (a fade-in, a
+    # lens cap) are 16-bit frames read as before, not a 6-bit camera whose later frames saturate
+    bits = next((b for b in DEPTHS if 2 ** (b - 1) <= top < 2**b), 16)
+    return bits, top
 
 
 def read_frame(path, bits: int | None = None) -> np.ndarray:
     """A frame as a BGR uint8 image: a 16-bit one of ``bits`` bits (:func:`frame_depth`, the same
-    for every frame of a sequence) scaled from its ``2**bits - 1`` to 255, larger values clipped;
+    for every frame of a sequence) scaled from its ``2**bits - 1`` to 255 (a larger value is an
+    :class:`InputError`: the depth was wrong);
     ``bits`` None or 16 reads it as OpenCV does (its top 8 bits)."""
     if bits is None or bits == 16:
         return read_image(path)
     img = read_image(path, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-    return img if img.dtype == np.uint8 else cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
+    if img.dtype == np.uint8:
+        return img
+    if int(img.max()) >= 2**bits:
+        raise InputError(f"values up to {int(img.max())}, above the {bits} bits the sequence's first frames implied "
+                         f"(their values stay below {2**bits}): its frames are of more bits than they showed", path=path)
+    return cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
 
 
 def _window(h: _Head, r: float, shape: tuple[int, ...]) -> tuple[int, int, int, int] | None:

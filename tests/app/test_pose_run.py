@@ -82,3 +82,23 @@ def test_a_pose_model_of_renders_says_nothing_about_real_instruments(tmp_path, r
     assert not pose["applies"] and pose["judged"] and pose["domain_auc"] >= 0.9, pose
     assert not any(s["verb"] in ("opens", "closes") for s in run["sentences"])
     assert "pose model: not said whether anything opens or closes" in out
+
+
+def test_run_says_when_the_crops_are_far_from_every_training_crop(tmp_path, run_cli):
+    """A pose model of a few near-identical crops knows nothing of other poses: its angles there are
+    its prior, whose spread (its training angles') is tiny. ``pose predict`` said so; ``run`` did not."""
+    few = tmp_path / "few"
+    assert run_cli("pose", "render", few, "--poses", "3", "--seed", "2", "--no-frames")[0] == 0
+    code, _, err = run_cli("pose", "train", few / "crops", few / "labels.csv", "--model", tmp_path / "few.npz")
+    assert code == 0, err
+    seq = tmp_path / "seq"
+    assert run_cli("pose", "render", seq, "--poses", "30", "--seed", "5")[0] == 0
+    boxes = list(csv.DictReader(open(seq / "boxes.csv")))
+    det = tmp_path / "det.txt"
+    det.write_text("".join(f"{i},-1,{r['x']},{r['y']},{r['w']},{r['h']},1,-1,-1,-1\n" for i, r in enumerate(boxes, 1)))
+    code, out, err = run_cli("run", seq / "frames", "--det", det, "--class", "tool", "--pose-model",
+                             tmp_path / "few.npz", "--out", tmp_path / "run", "--no-video")
+    assert code == 0, err
+    pose = json.loads((tmp_path / "run" / "run.json").read_text())["pose"]
+    assert pose["far"] > pose["crops"] // 2, pose
+    assert f"pose model: {pose['far']} of {pose['crops']} crops are far from every training crop" in out

@@ -131,3 +131,23 @@ def test_labels_name_crops_with_or_without_their_extension(tmp_path):
     (tmp_path / "two.csv").write_text((tmp_path / "l.csv").read_text() + "000001.PNG,1,2\n")
     with pytest.raises(InputError, match=r"labels '000001' and '000001.PNG' both name image 000001.png"):
         load_labelled(tmp_path / "crops", tmp_path / "two.csv")
+
+
+def test_a_model_file_with_a_damaged_compression_field_is_one_line(tmp_path):
+    """A pose model whose zip entry names an unknown compression method (found by the fuzz test)
+    raised zipfile's NotImplementedError out of ``load``: an internal error, not a one-line one."""
+    from artmotion.errors import InputError
+    from artmotion.pose.model import PoseRegressor
+
+    rng = np.random.default_rng(0)
+    crops = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(12)]
+    reg = PoseRegressor(n_components=4).fit(crops, rng.normal(size=(12, 2)), names=["a", "b"])
+    good = tmp_path / "m.npz"
+    reg.save(good)
+    raw = bytearray(good.read_bytes())
+    at = raw.index(b"PK\x01\x02") + 10            # the first entry's compression method (central directory)
+    raw[at:at + 2] = (99).to_bytes(2, "little")
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(bytes(raw))
+    with pytest.raises(InputError, match="not an artmotion pose model"):
+        PoseRegressor.load(bad)

@@ -113,7 +113,10 @@ def run_cmd(
     if res.pose is not None and not res.pose["applies"]:
         typer.echo(f"pose model: not said whether anything opens or closes: the {res.pose['crops']} crops are unlike "
                    f"its training crops (told from the nearest of them with AUC {res.pose['domain_auc']:.2f})")
-    elif res.pose is not None and not res.pose["judged"]:
+    if res.pose is not None and res.pose.get("far"):
+        typer.echo(f"pose model: {res.pose['far']} of {res.pose['crops']} crops are far from every training crop: their "
+                   "angles there are the model's prior (the spread of its training angles), not read off the crops")
+    if res.pose is not None and res.pose["applies"] and not res.pose["judged"]:
         typer.echo(f"pose model: applied without knowing whether the {res.pose['crops']} crops are like its training "
                    f"crops (too few to tell)")
     if res.metrics:

@@ -117,8 +117,9 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
     smoothed in time (Eq. 3.6-3.7, forward and back). First the crops of all tracks are compared with the model's
     training crops (:meth:`~artmotion.pose.model.PoseRegressor.domain_auc`): when they are
     another domain (a model trained on renders, a real video), nothing is said about the opening.
-    Returns the angles and ``{"crops", "domain_auc", "judged", "applies"}`` (not judged: too few
-    crops to tell; the model is then applied).
+    Returns the angles and ``{"crops", "domain_auc", "judged", "applies", "far"}`` (not judged: too
+    few crops to tell; the model is then applied; ``far``: the crops far from every training crop,
+    whose angles are the model's prior, :meth:`~artmotion.pose.model.PoseRegressor.far_from_training`).
     """
     from artmotion.pose.features import box_views
     from artmotion.pose.model import is_foreign
@@ -147,6 +148,7 @@ def track_poses(seq, tracks: np.ndarray, model, k: int, min_boxes: int = 5
         return out, info
     # every track's crops in one call (the model batches them), then each track smoothed in time
     mean, std = model.predict(X, return_std=True, views=views)
+    info["far"] = int(model.far_from_training(std).sum())   # crops whose angles are the model's prior
     start = 0
     for tid in tids:
         its, rows = crops[tid], slice(start, start + len(crops[tid]))

@@ -579,8 +579,9 @@ class PoseRegressor(BaseEstimator):
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
         # (a damaged array header reaches NumPy's header tokenizer: TokenError, SyntaxError)
+        # (a damaged compression-method field: zipfile's NotImplementedError)
         except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError, tokenize.TokenError,
-                SyntaxError) as exc:
+                SyntaxError, NotImplementedError) as exc:
             raise InputError(f"not an artmotion pose model (unreadable: {type(exc).__name__})", path=path) from None
         if not isinstance(d, dict) or "magic" not in d or d["magic"].shape != () or str(d["magic"]) != MAGIC:
             raise InputError("not an artmotion pose model (no magic key)", path=path)

@@ -24,14 +24,19 @@ def pose_model(tmp_path_factory):
     return d / "m.npz"
 
 
+def _run_rendered(run_cli, seq, model, out):
+    """``artmotion run`` on a rendered sequence's frames with its boxes as the detections."""
+    boxes = list(csv.DictReader(open(seq / "boxes.csv")))
+    det = seq / "det.txt"
+    det.write_text("".join(f"{i},-1,{r['x']},{r['y']},{r['w']},{r['h']},1,-1,-1,-1\n" for i, r in enumerate(boxes, 1)))
+    return run_cli("run", seq / "frames", "--det", det, "--class", "tool", "--pose-model", model, "--out", out,
+                   "--no-video")
+
+
 def test_run_with_pose_model_says_when_the_tool_opens_and_closes(tmp_path, run_cli, pose_model):
     seq = tmp_path / "seq"
     assert run_cli("pose", "render", seq, "--poses", "120", "--seed", "5")[0] == 0
-    boxes = list(csv.DictReader(open(seq / "boxes.csv")))
-    det = tmp_path / "det.txt"
-    det.write_text("".join(f"{i},-1,{r['x']},{r['y']},{r['w']},{r['h']},1,-1,-1,-1\n" for i, r in enumerate(boxes, 1)))
-    code, out, err = run_cli("run", seq / "frames", "--det", det, "--class", "tool", "--pose-model",
-                             pose_model, "--out", tmp_path / "run", "--no-video")
+    code, out, err = _run_rendered(run_cli, seq, pose_model, tmp_path / "run")
     assert code == 0, err
     # another render of the same tool: the model applies
     pose = json.loads((tmp_path / "run" / "run.json").read_text())["pose"]
@@ -93,11 +98,7 @@ def test_run_says_when_the_crops_are_far_from_every_training_crop(tmp_path, run_
     assert code == 0, err
     seq = tmp_path / "seq"
     assert run_cli("pose", "render", seq, "--poses", "30", "--seed", "5")[0] == 0
-    boxes = list(csv.DictReader(open(seq / "boxes.csv")))
-    det = tmp_path / "det.txt"
-    det.write_text("".join(f"{i},-1,{r['x']},{r['y']},{r['w']},{r['h']},1,-1,-1,-1\n" for i, r in enumerate(boxes, 1)))
-    code, out, err = run_cli("run", seq / "frames", "--det", det, "--class", "tool", "--pose-model",
-                             tmp_path / "few.npz", "--out", tmp_path / "run", "--no-video")
+    code, out, err = _run_rendered(run_cli, seq, tmp_path / "few.npz", tmp_path / "run")
     assert code == 0, err
     pose = json.loads((tmp_path / "run" / "run.json").read_text())["pose"]
     assert pose["far"] > pose["crops"] // 2, pose

@@ -42,6 +42,14 @@ RADIUS_RANGES = ((0.01, 1.0), (0.1, 1.0), (0.05, 0.7), (0.05, 2.0), (0.1, 0.7)) 
 FRACTIONS = tuple(np.round(np.arange(0.1, 1.01, 0.1), 2))
 MOVED = 0.01  # metres: a prefix whose gripper moved less is "static"
 BINS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.99, 1.0001)
+GLITCHES = (("+1 m in z", (0.0, 0.0, 1.0)), ("+2 m in z", (0.0, 0.0, 2.0)), ("-0.5 m in z", (0.0, 0.0, -0.5)))
+
+
+def glitched(X: np.ndarray, offset) -> np.ndarray:
+    """``X`` with its middle sample moved by ``offset`` (a tracker's one-sample glitch)."""
+    Y = X.copy()
+    Y[len(Y) // 2, :3] += offset
+    return Y
 
 
 def load(sturm: str, n_synthetic: int) -> list[dict]:
@@ -181,6 +189,14 @@ def main(argv=None) -> int:
               f"of a log**, {sm['revised']} first decisions revised later, prefix Brier score {sm['brier']:.3f}, "
               f"log-loss {sm['log_loss']:.3f}. The held-out rows above score each mechanism with the T chosen "
               "without it."]
+    shared_logs = [lg for lg in logs if lg["group"] != "synthetic"]
+    with ProcessPoolExecutor(max_workers=2) as ex:
+        hit = list(ex.map(run_one, [(glitched(lg["X"], off), lg["truth"], *default)
+                                    for _, off in GLITCHES for lg in shared_logs], chunksize=4))
+    n = len(shared_logs)
+    lines += ["", "One glitch (the middle sample of each shared log moved, the rest as recorded), at the default: "
+              "right " + ", ".join(f"{sum(r['correct'] for r in hit[i * n:(i + 1) * n])}/{n} with {name}"
+                                  for i, (name, _) in enumerate(GLITCHES)) + "."]
     sens = [(default[0], rr) for rr in RADIUS_RANGES]
     run(sens)
     lines += ["", f"Sensitivity to the radius prior at T = {default[0]} (not used for choosing):", "",

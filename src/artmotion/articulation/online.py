@@ -15,7 +15,8 @@ noise's share). A line and a circle through the same samples move alike along th
 scored along the motion by the line's filter: the choice between them rests on their geometry.
 
 Noise from the data, per model. At each configuration fit every model re-fits by iteratively
-re-weighted least squares under the Student-t (a plain fit, then two re-weighted ones) and
+re-weighted least squares under the Student-t (a fit weighted as a smooth motion sees the samples,
+then two re-weighted by the model's residuals: :meth:`OnlineEstimator._smooth_weights`) and
 estimates ``sigma_j`` as the t-scale of its residuals: a few slips of the gripper are down-weighted
 instead of making every model look impossible. ``noise`` fixes one ``sigma`` for all models (SLAM
 knows its sensor); ``noise_floor`` bounds the estimate from below, and so does the rounding of
@@ -557,6 +558,7 @@ class OnlineEstimator(Params):
         self._Tbuf = np.empty(64)
         self._n = 0
         self._given: tuple[int, bool] | None = None  # the first observation's size and whether it had a time stamp
+        self._w0: np.ndarray | None = None  # the samples' starting weights (:meth:`_smooth_weights`)
         self.filters: list | None = None
         # log-likelihoods per model: off the manifold, and along it (one-parameter motions share the
         # reference model's: the line's when it is a candidate; see ``loglik``)
@@ -700,15 +702,31 @@ class OnlineEstimator(Params):
         f.sigma = max(math.sqrt(s2), floor) if self.noise is None else max(float(self.noise), floor)
 
     def _irls(self, m, X: np.ndarray, d: int) -> tuple[float, np.ndarray]:
-        """A plain fit of model ``m`` to ``X``, then two re-weighted by the Student-t; the residuals'
-        t-scale squared (``d`` dimensions) and the residual vectors."""
-        w = None
+        """Model ``m`` fitted to ``X`` from the samples' starting weights (:meth:`_smooth_weights`),
+        then twice re-weighted by the Student-t of its residuals; the residuals' t-scale squared
+        (``d`` dimensions) and the residual vectors."""
+        w = self._w0 if self._w0 is not None and len(self._w0) == len(X) else None
         for _ in range(3 if self.nu is not None else 1):
             m.fit(X, w)
-            q = m.motion(X)
-            E = X - m.predict(q)
+            E = X - m.predict(m.motion(X))
             s2, w = robust_scale(np.einsum("ij,ij->i", E, E), d, self.nu)
         return s2, E
+
+    def _smooth_weights(self, X: np.ndarray, T: np.ndarray) -> np.ndarray | None:
+        """Starting weights of the samples: Student-t weights of their departures from the line
+        through their two neighbours (second differences, at times ``T``), the same for every
+        model. A plain least-squares start lets a glitch drag every model's fit into a wrong
+        Student-t optimum (one sample 1 m off turned a circle prismatic); these give the glitch no
+        weight, and no model gains by its own outliers."""
+        if self.nu is None or len(X) < 5:
+            return None
+        span = T[2:] - T[:-2]
+        a = np.divide(T[2:] - T[1:-1], span, out=np.full(len(span), 0.5), where=span > 0)[:, None]
+        r = X[1:-1] - (a * X[:-2] + (1.0 - a) * X[2:])
+        _, w = robust_scale(np.einsum("ij,ij->i", r, r), X.shape[1], self.nu)
+        # a sample takes the least weight of the three differences it enters (a glitch spoils all three)
+        w = np.concatenate([[w[0]], w, [w[-1]]])
+        return np.minimum(np.minimum(w, np.r_[w[1:], w[-1]]), np.r_[w[0], w[:-1]])
 
     def _motion_noise(self, X: np.ndarray, sigma: float, dt: float) -> float:
         """Process noise of the motion (length per time unit squared), the same for every model: the
@@ -787,6 +805,7 @@ class OnlineEstimator(Params):
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
                 # a circle through points on a line (or at one point) is scored, and loses, not refused
                 f.model.require_circle = False
+        self._w0 = self._smooth_weights(X, T)
         for f in self.filters:
             self._fit_model(f, X, floor)
         # the motion's process noise is the same for every model (the point's acceleration); the

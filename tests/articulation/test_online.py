@@ -258,14 +258,15 @@ def test_a_pose_log_far_from_the_origin_keeps_its_answer():
     assert fit_poses(P, Q)["model"] == fit_poses(P + off, Q)["model"] == "prismatic"
 
 
-@pytest.mark.parametrize("glitch", [(1.0, 0.0, 0.0), (0.0, 0.0, 2.0)])
-def test_one_glitch_does_not_flip_the_answer(glitch):
+@pytest.mark.parametrize("glitch, n", [((1.0, 0.0, 0.0), 100), ((0.0, 0.0, 2.0), 100), ((0.0, 0.0, 2.0), 99)])
+def test_one_glitch_does_not_flip_the_answer(glitch, n):
     """One sample a metre or two off (a tracker's glitch) among 100 on a door's arc: each re-fit
     re-weighted from a plain least-squares fit stayed in the Student-t optimum the glitch drags, and
-    the door was called a line (0.98)."""
+    the door was called a line (0.98). With 99 samples the final configuration is fitted after the
+    last re-fit (the radius came out 1.006 m when that fit started plain)."""
     rng = np.random.default_rng(5)
-    th = np.linspace(0.0, 1.4, 100)
-    X = np.column_stack([1.0 + 0.4 * np.cos(th), 2.0 + 0.4 * np.sin(th), np.full(100, 0.5)])
+    th = np.linspace(0.0, 1.4, 100)[:n]
+    X = np.column_stack([1.0 + 0.4 * np.cos(th), 2.0 + 0.4 * np.sin(th), np.full(n, 0.5)])
     X += rng.normal(0.0, 1e-3, X.shape)
     X[50] += glitch
     res = estimate_online(X)

@@ -558,7 +558,6 @@ class OnlineEstimator(Params):
         self._Tbuf = np.empty(64)
         self._n = 0
         self._given: tuple[int, bool] | None = None  # the first observation's size and whether it had a time stamp
-        self._w0: np.ndarray | None = None  # the samples' starting weights (:meth:`_smooth_weights`)
         self.filters: list | None = None
         # log-likelihoods per model: off the manifold, and along it (one-parameter motions share the
         # reference model's: the line's when it is a candidate; see ``loglik``)
@@ -685,27 +684,27 @@ class OnlineEstimator(Params):
             return held
         return self.names[j]
 
-    def _fit_model(self, f: _ModelFilter, X: np.ndarray, floor: float):
+    def _fit_model(self, f: _ModelFilter, X: np.ndarray, floor: float, w0: np.ndarray | None):
         """Fit ``f``'s configuration to ``X`` robustly and estimate its noise: Student-t re-weighted
-        fits of the configuration and of the scale of its residuals (module doc)."""
-        s2, E = self._irls(f.model, X, max(f.d, 1))
+        fits of the configuration, from the samples' starting weights ``w0``
+        (:meth:`_smooth_weights`), and of the scale of its residuals (module doc)."""
+        s2, E = self._irls(f.model, X, max(f.d, 1), w0)
         line = self.filters[self._ref] if self._ref is not None and self.filters is not None else None
         if f.model.name == "revolute" and line is not None and line is not f and s2 > line.sigma**2:
             # a circle that fits worse than the line it contains started from a bad circle: fit afresh
             cold = copy.deepcopy(f.model)
             cold.warm = False
-            s2c, Ec = self._irls(cold, X, max(f.d, 1))
+            s2c, Ec = self._irls(cold, X, max(f.d, 1), w0)
             if s2c < s2:
                 cold.warm = True
                 f.model, s2, E = cold, s2c, Ec
         f.residuals = E
         f.sigma = max(math.sqrt(s2), floor) if self.noise is None else max(float(self.noise), floor)
 
-    def _irls(self, m, X: np.ndarray, d: int) -> tuple[float, np.ndarray]:
-        """Model ``m`` fitted to ``X`` from the samples' starting weights (:meth:`_smooth_weights`),
-        then twice re-weighted by the Student-t of its residuals; the residuals' t-scale squared
-        (``d`` dimensions) and the residual vectors."""
-        w = self._w0 if self._w0 is not None and len(self._w0) == len(X) else None
+    def _irls(self, m, X: np.ndarray, d: int, w: np.ndarray | None) -> tuple[float, np.ndarray]:
+        """Model ``m`` fitted to ``X`` from the samples' starting weights ``w``, then twice
+        re-weighted by the Student-t of its residuals; the residuals' t-scale squared (``d``
+        dimensions) and the residual vectors."""
         for _ in range(3 if self.nu is not None else 1):
             m.fit(X, w)
             E = X - m.predict(m.motion(X))
@@ -723,7 +722,7 @@ class OnlineEstimator(Params):
         span = T[2:] - T[:-2]
         a = np.divide(T[2:] - T[1:-1], span, out=np.full(len(span), 0.5), where=span > 0)[:, None]
         r = X[1:-1] - (a * X[:-2] + (1.0 - a) * X[2:])
-        _, w = robust_scale(np.einsum("ij,ij->i", r, r), X.shape[1], self.nu)
+        _, w = robust_scale(np.einsum("ij,ij->i", r, r), self._dim, self.nu)
         # a sample takes the least weight of the three differences it enters (a glitch spoils all three)
         w = np.concatenate([[w[0]], w, [w[-1]]])
         return np.minimum(np.minimum(w, np.r_[w[1:], w[-1]]), np.r_[w[0], w[:-1]])
@@ -805,9 +804,9 @@ class OnlineEstimator(Params):
                 f.model.warm = True  # circle re-fits start from the previous circle when it fits better
                 # a circle through points on a line (or at one point) is scored, and loses, not refused
                 f.model.require_circle = False
-        self._w0 = self._smooth_weights(X, T)
+        w0 = self._smooth_weights(X, T)
         for f in self.filters:
-            self._fit_model(f, X, floor)
+            self._fit_model(f, X, floor, w0)
         # the motion's process noise is the same for every model (the point's acceleration); the
         # noise along the motion is each model's own, as off it (isotropic deviations)
         moving = [f for f in self.filters if f.dof]
@@ -921,11 +920,12 @@ class OnlineEstimator(Params):
         T = self.T
         final = {}
         floor = self._floor(X) if self._n > self._last_fit else None
+        w0 = self._smooth_weights(X, T) if floor is not None else None
         for g in self.filters:  # final configurations from all samples (on copies: updates may go on)
             if floor is not None:
                 g = copy.copy(g)
                 g.model = copy.deepcopy(g.model)
-                self._fit_model(g, X, floor)
+                self._fit_model(g, X, floor, w0)
                 g.x = None  # the filter state belonged to the previous configuration
             final[g.model.name] = g
         f = final[self.names[best]]

@@ -51,6 +51,8 @@ _ODOMETRY_REG = 1e-6
 #: regulariser of the Taylor model's ``Q`` (rank 1 for one step), relative to its trace: about what a
 #: continuous white-noise acceleration would add (``dt^2 / 12`` at ``dt = 0.1``)
 _TAYLOR_REG = 1e-3
+#: std of the prior on a moving landmark's first joint coordinate (rad on a circle, m on a line)
+_Q_PRIOR_STD = math.pi
 #: beyond this many steps since a landmark's last sighting the gate takes the pose's marginal
 _DRIFT_STEPS = 100
 
@@ -425,8 +427,10 @@ class GraphSlam:
             for (k, zk), q in zip(past, reversed(qs[1:])):
                 self._sighting(t, zk, k, np.array([q, d.rate]))
         self._sighting(t, z, self.k, np.array([d.q, d.rate]))
-        # the rate Algorithm 1 fitted: a prior on q' (q is left to the sightings)
-        sig = np.array([1e3, math.sqrt(max(d.rate_var, 1e-6))])
+        # the rate Algorithm 1 fitted: a prior on q' (q is left to the sightings: a prior of a half-turn,
+        # or pi metres along a line, is nothing beside one sighting; 1e3 was, and with the Taylor
+        # factors' regularised noise it left iSAM2 an indeterminate system in a moving-only run)
+        sig = np.array([_Q_PRIOR_STD, math.sqrt(max(d.rate_var, 1e-6))])
         self._add(self._gtsam.PriorFactorVector(t.keys[-1], np.array([d.q, d.rate]),
                                                 self._gtsam.noiseModel.Diagonal.Sigmas(sig)), t)
 

@@ -73,7 +73,7 @@ def test_a_pose_model_of_renders_says_nothing_about_real_instruments(tmp_path, r
     # the tool tracker's heads are the true ones (this test is about the pose model, not the tracker)
     monkeypatch.setattr(detector.ToolDetector, "load", classmethod(lambda cls, path: object()))
 
-    def true_heads(seq, tools, progress=False, bits=None):
+    def true_heads(seq, tools, progress=False):
         for (no, _), f in zip(seq.frames(), frames):
             yield no, np.array([[k, x, y, s, a, 1.0] for k, (x, y, s, a) in enumerate(gt[f])])
 

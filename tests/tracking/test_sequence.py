@@ -409,3 +409,31 @@ def test_frames_are_read_as_stored_whatever_their_orientation_tag(tmp_path, mot_
     seq = open_sequence(video)
     assert (seq.width, seq.height, seq.orientation) == (W, H, "turn 90°")
     assert all(img.shape[:2] == (H, W) for _, img in seq.frames())
+
+
+def test_every_reader_of_a_12_bit_sequence_sees_its_depth(tmp_path, run_cli):
+    """12-bit frames in 16-bit PNGs: the depth was decided by tool train and tool track alone, so
+    `track`, `run`'s annotated video and its pose crops read them by their top 8 bits (0-15:
+    nearly black). It is now the sequence's: every reader sees the same frames, reduced or not,
+    and `track` says so."""
+    rng = np.random.default_rng(0)
+    frames = tmp_path / "f12"
+    frames.mkdir()
+    for k, top in enumerate([4000, 4095, 3000], start=1):
+        cv2.imwrite(str(frames / f"{k:06d}.png"), rng.integers(0, top + 1, (48, 64, 3)).astype(np.uint16))
+    seq = open_sequence(frames)
+    assert seq.depth == (12, 4095)
+    for reduce in (1, 2):
+        imgs = [img for _, img in seq.frames(reduce=reduce)]
+        assert all(i.dtype == np.uint8 for i in imgs) and min(int(i.max()) for i in imgs) > 120  # (top 8 bits: 15)
+        assert imgs[0].shape[:2] == (-(-48 // reduce), -(-64 // reduce))
+    det = tmp_path / "det.txt"
+    det.write_text("1,-1,10,10,8,16,0.9,-1,-1,-1\n")
+    code, out, err = run_cli("track", frames, "--det", det)
+    assert code == 0, err
+    assert "(16-bit frames with values up to 4095 (in 5 spread over the sequence): read as 12-bit" in out
+    eight = tmp_path / "f8"
+    eight.mkdir()
+    for k in (1, 2):
+        cv2.imwrite(str(eight / f"{k:06d}.png"), np.full((48, 64, 3), 200, np.uint8))
+    assert open_sequence(eight).depth is None

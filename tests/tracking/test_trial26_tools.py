@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from artmotion.errors import InputError
+from artmotion.io.media import frame_depth, read_frame
 from artmotion.tracking.instruments.annotations import read_predictions, read_tools_csv
 from artmotion.tracking.instruments.detector import ToolDetector
-from artmotion.tracking.instruments.track import frame_depth, read_frame
 
 pytest.importorskip("torch")
 
@@ -52,7 +52,7 @@ def test_12_bit_frames_in_16_bit_pngs_are_scaled_by_their_depth(tmp_path, run_cl
     assert img.dtype == np.uint8 and img.max() == 255
     code, out, err = run_cli("tool", "track", frames, "--model", stub, "--out", tmp_path / "p.csv")
     assert code == 0, err
-    assert "16-bit frames with values up to 4095 (in the first ones): read as 12-bit, 4095 scaled to 255" in err
+    assert "16-bit frames with values up to 4095 (in 5 spread over the sequence): read as 12-bit, 4095 scaled to 255" in err
     assert min(_Seeing.seen) > 180 and "nearly black" not in err
     # true 16-bit frames are read as before (their top 8 bits), 8-bit ones too: no note
     assert frame_depth(sorted(_frames(tmp_path / "f16", [60000, 65535], dtype=np.uint16).iterdir())) == (16, 65535)
@@ -140,24 +140,30 @@ def _write(path, text):
 
 def test_a_16_bit_sequence_that_starts_dark_is_not_read_as_fewer_bits(tmp_path):
     """Frames of a full 16-bit range whose first five stay dark (a fade-in) were taken for 8-bit
-    ones, and every later frame read as white: a depth is read only from values using its top bit,
-    and a later frame beyond the depth read is an error, not clipped."""
+    ones, and every later frame read as white; then for 16-bit ones of values up to 50 only, and
+    `track` or `run` stopped at the first bright frame. The depth is read from frames spread over
+    the sequence and only from values using its top bit; a frame beyond the depth read is an error,
+    not clipped."""
     from artmotion.errors import InputError
-    from artmotion.tracking.instruments.track import frame_depth, read_frame
+    from artmotion.io.media import frame_depth, read_frame
+    from artmotion.io.sequence import open_sequence
 
+    folder = tmp_path / "fade"
+    folder.mkdir()
     paths = []
-    for k, top in enumerate([50] * 5 + [20000, 60000]):
-        p = tmp_path / f"{k:03d}.png"
+    for k, top in enumerate([50] * 12 + [20000, 3000, 9000, 60000]):
+        p = folder / f"{k:03d}.png"
         cv2.imwrite(str(p), np.full((8, 8, 3), top, np.uint16))
         paths.append(p)
-    assert frame_depth(paths) == (16, 50)
-    assert int(read_frame(paths[6], 16).max()) == 60000 >> 8
+    assert frame_depth(paths) == (16, 60000)
+    assert int(read_frame(paths[15], 16).max()) == 60000 >> 8
+    assert len(list(open_sequence(folder).frames())) == 16
     twelve = []
     for k, top in enumerate([3000] * 5 + [5000]):
         p = tmp_path / f"t{k:03d}.png"
         cv2.imwrite(str(p), np.full((8, 8, 3), top, np.uint16))
         twelve.append(p)
-    assert frame_depth(twelve) == (12, 3000)
+    assert frame_depth(twelve[:5]) == (12, 3000)
     assert int(read_frame(twelve[0], 12).max()) == round(3000 * 255 / 4095)
     with pytest.raises(InputError, match="values up to 5000, above the 12 bits"):
         read_frame(twelve[5], 12)

@@ -103,6 +103,10 @@ def run_cmd(
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model,
                        fps=fps)
+    from artmotion.io.media import depth_note
+
+    if depth_note(res.depth):
+        typer.echo(f"note: {depth_note(res.depth)}", err=True)
     why = too_short(res.num_tracks, res.frames)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s{': ' + why if why else ''}")

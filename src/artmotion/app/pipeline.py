@@ -53,6 +53,8 @@ class RunResult:
     pose: dict | None = None
     #: frames of the input
     frames: int = 0
+    #: 16-bit image files: ``(bits, largest value)`` of the first frames (:attr:`Sequence.depth`)
+    depth: tuple[int, int] | None = None
 
     @property
     def report(self) -> Path:
@@ -233,7 +235,7 @@ def run_pipeline(
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
-                     manifest["seconds"], manifest.get("pose"), seq.length)
+                     manifest["seconds"], manifest.get("pose"), seq.length, seq.depth)
 
 
 #: the files of a run folder
@@ -315,12 +317,11 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
     the head's size), entries and exits from the tracks, opening and closing from the heads' crops
     where the pose model applies."""
     from artmotion.language.describe import events_from_tracks
-    from artmotion.tracking.instruments.track import frame_depth, to_mot, track_sequence
+    from artmotion.tracking.instruments.track import to_mot, track_sequence
     from artmotion.tracking.video import write_annotated
 
     t0 = time.perf_counter()
-    bits = frame_depth(seq.images) if seq.images is not None else None    # (as tool train and track read them)
-    tracks = to_mot(list(track_sequence(seq, tools, progress, bits=None if bits is None else bits[0])))
+    tracks = to_mot(list(track_sequence(seq, tools, progress)))
     fps = len(seq) / max(time.perf_counter() - t0, 1e-9)
     events = events_from_tracks(tracks, (seq.width, seq.height))
     if video:

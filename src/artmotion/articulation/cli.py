@@ -182,6 +182,10 @@ def video(
     d = res.to_dict()
     if out is not None:
         _write_video_outputs(out, res, d)
+    from artmotion.io.media import depth_note
+
+    if depth_note(res.depth):
+        typer.echo(f"note: {depth_note(res.depth)}", err=True)
     if as_json:
         typer.echo(json.dumps(d, allow_nan=False))
         return

@@ -47,7 +47,7 @@ from artmotion.errors import InputError
 from artmotion.io.files import check_riff_size, read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
-           "image_problem", "read_image", "write_image"]
+           "depth_note", "frame_depth", "image_problem", "read_frame", "read_image", "write_image"]
 
 IMAGE_EXTS = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm"})
 VIDEO_EXTS = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".webm", ".wmv", ".flv", ".ts",
@@ -297,6 +297,65 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     if img is None or img.size == 0:
         raise InputError("cannot decode image (corrupt or not an image)", path=path)
     return img
+
+
+#: bit depths a 16-bit image file may hold (a 12-bit camera's 0-4095 in a 16-bit PNG)
+DEPTHS = (8, 10, 12, 14, 16)
+#: how many frames of a sequence, spread over it, :func:`frame_depth` looks at
+DEPTH_FRAMES = 5
+#: suffixes of files that hold 8-bit images only (no decode needed to know)
+_EIGHT_BIT = frozenset({".jpg", ".jpeg", ".webp", ".bmp"})
+
+
+def frame_depth(paths) -> tuple[int, int] | None:
+    """``(bits, largest value)`` of a sequence of 16-bit image files, from :data:`DEPTH_FRAMES` of
+    its frames spread evenly from the first to the last: the one of :data:`DEPTHS` whose top bit
+    their largest value uses (a 12-bit camera's 2048-4095 in a 16-bit PNG: 12), else 16; None for
+    8-bit frames."""
+    import cv2
+
+    paths = list(paths)
+    if not paths or Path(paths[0]).suffix.lower() in _EIGHT_BIT:
+        return None
+    top = -1
+    for k in sorted(set(np.linspace(0, len(paths) - 1, DEPTH_FRAMES).round().astype(int).tolist())):
+        img = read_image(paths[k], cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        if img.dtype != np.uint16:
+            return None
+        top = max(top, int(img.max()))
+    # a depth is read only from values that use its top bit: frames that are dark (a fade-in, a
+    # lens cap) are 16-bit frames read as before, not a 6-bit camera whose other frames saturate
+    bits = next((b for b in DEPTHS if 2 ** (b - 1) <= top < 2**b), 16)
+    return bits, top
+
+
+def depth_note(depth: tuple[int, int] | None) -> str:
+    """What :func:`frame_depth`'s answer means for the frames (``""`` when they are read as OpenCV
+    reads them: 8-bit, or 16-bit by their top 8 bits)."""
+    if depth is None or depth[0] >= 16:
+        return ""
+    bits, top = depth
+    return (f"16-bit frames with values up to {top} (in {DEPTH_FRAMES} spread over the sequence): read as "
+            f"{bits}-bit, {2**bits - 1} scaled to 255")
+
+
+def read_frame(path: str | os.PathLike, bits: int | None = None) -> np.ndarray:
+    """A frame as a BGR uint8 image: a 16-bit one of ``bits`` bits (:func:`frame_depth`, the same
+    for every frame of a sequence) scaled from its ``2**bits - 1`` to 255 (a larger value is an
+    :class:`InputError`: the depth was wrong); ``bits`` None or 16 reads it as OpenCV does (its top
+    8 bits)."""
+    import cv2
+
+    if bits is None or bits >= 16:
+        return read_image(path)
+    img = read_image(path, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+    if img.dtype == np.uint8:
+        return img
+    if int(img.max()) >= 2**bits:
+        raise InputError(f"values up to {int(img.max())}, above the {bits} bits that {DEPTH_FRAMES} frames spread over "
+                         f"the sequence implied (their values stay below {2**bits}): its frames are of more bits "
+                         "than they showed", path=path)
+    return cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
 
 
 #: how libjpeg and libpng report, on stderr only, damage they decoded around (a gray block, a

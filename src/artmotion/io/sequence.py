@@ -29,7 +29,9 @@ from artmotion.io.media import (
     VIDEO_EXTS,
     check_video,
     exif_orientation,
+    frame_depth,
     open_capture,
+    read_frame,
     read_image,
 )
 from artmotion.io.mot import MAX_FRAME
@@ -64,13 +66,16 @@ class Sequence:
     """A sequence of frames with its metadata.
 
     Attributes: ``name``, ``fps``, ``width``, ``height``, ``length`` (frame count), ``det_path``
-    and ``gt_path`` (``None`` when absent), ``path`` (what was opened) and ``images`` (the image
-    files, or ``None`` for a video).
+    and ``gt_path`` (``None`` when absent), ``path`` (what was opened), ``images`` (the image
+    files, or ``None`` for a video) and ``depth`` (16-bit image files: ``(bits, largest value)``
+    of the first frames, :func:`~artmotion.io.media.frame_depth`; frames of fewer than 16 bits are
+    read scaled from ``2**bits - 1`` to 255, :func:`~artmotion.io.media.depth_note` says so).
     """
 
     def __init__(self, path: Path, name: str, fps: float, width: int, height: int, length: int,
                  images: list[Path] | None = None, video: Path | None = None,
-                 det_path: Path | None = None, gt_path: Path | None = None, orientation: str = ""):
+                 det_path: Path | None = None, gt_path: Path | None = None, orientation: str = "",
+                 depth: tuple[int, int] | None = None):
         self.path = path
         self.name = name
         self.fps = float(fps)
@@ -90,6 +95,7 @@ class Sequence:
         #: what the input's orientation tag asks a viewer to do with the frames (``""``: nothing),
         #: e.g. ``"turn 90°"``; artmotion reads them as stored (boxes are in stored pixels)
         self.orientation = orientation
+        self.depth = depth
 
     def __len__(self) -> int:
         return self.length
@@ -130,8 +136,17 @@ class Sequence:
         # a reduced decode rounds the size up (JPEG) or down: either is the sequence's size
         fits = ({self.height // reduce, want[0]}, {self.width // reduce, want[1]})
         if self.images is not None:
+            bits = self.depth[0] if self.depth is not None and self.depth[0] < 16 else None
             for i, p in enumerate(self.images, start=1):
-                img = read_image(p, _REDUCED[reduce])
+                if bits is None:
+                    img = read_image(p, _REDUCED[reduce])
+                else:  # (OpenCV's reduced decoding reads 8 bits)
+                    img = read_frame(p, bits)
+                    if img.shape[:2] != (self.height, self.width):
+                        raise InputError(f"image size {img.shape[1]}x{img.shape[0]} differs from the sequence's "
+                                         f"{self.width}x{self.height}", path=p)
+                    if reduce > 1:
+                        img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 if img.shape[0] not in fits[0] or img.shape[1] not in fits[1]:
                     raise InputError(
                         f"image size {img.shape[1] * reduce}x{img.shape[0] * reduce} differs from the sequence's "
@@ -442,7 +457,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
         w, h, turn = _image_size(images[0])
         _check_size(info, ini, w, h, images[0])
         seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt,
-                       orientation=turn)
+                       orientation=turn, depth=frame_depth(images))
         seq.fps_known = known
         return seq
     videos = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
@@ -500,7 +515,7 @@ def _open_image_folder(folder: Path) -> Sequence:
     fps = _num(_read_seqinfo(ini), "framerate", ini) if ini.is_file() else None
     name = folder.name if folder.name != "img1" else parent.resolve().name or folder.name
     seq = Sequence(folder, name, fps or DEFAULT_FPS, w, h,
-                   len(images), images=images, det_path=det, gt_path=gt, orientation=turn)
+                   len(images), images=images, det_path=det, gt_path=gt, orientation=turn, depth=frame_depth(images))
     seq.fps_known = fps is not None
     return seq
 

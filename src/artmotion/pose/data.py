@@ -11,8 +11,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_write
-from artmotion.io.media import IMAGE_EXTS
-from artmotion.io.media import read_image as _read_checked
+from artmotion.io.media import IMAGE_EXTS, frame_depth, read_frame
 from artmotion.io.sequence import hidden, natural_key
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
 
@@ -30,21 +29,26 @@ def list_images(folder: str | os.PathLike) -> list[Path]:
     return files
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """A crop, checked (:func:`artmotion.io.media.read_image`) and at least 2 x 2 pixels."""
-    img = _read_checked(path)
+def read_image(path: str | os.PathLike, bits: int | None = None) -> np.ndarray:
+    """A crop, checked (:func:`artmotion.io.media.read_image`) and at least 2 x 2 pixels; 16-bit
+    crops of ``bits`` bits scaled to 8 (:func:`~artmotion.io.media.read_frame`)."""
+    img = read_frame(path, bits)
     if img.shape[0] < 2 or img.shape[1] < 2:
         raise InputError(f"image too small ({img.shape[1]}x{img.shape[0]})", path=path)
     return img
 
 
 def read_images(paths: Sequence[Path], progress: bool = False) -> list[np.ndarray]:
+    """The crops ``paths``, read as :func:`read_image` reads them; 16-bit crops at the bit depth
+    that crops spread over them imply (:func:`~artmotion.io.media.frame_depth`), as `run` reads
+    16-bit frames."""
+    depth = frame_depth(paths)
     it = paths
     if progress:
         from tqdm import tqdm
 
         it = tqdm(paths, desc="read images", unit="img", leave=False, disable=None)
-    return [read_image(p) for p in it]
+    return [read_image(p, depth[0] if depth else None) for p in it]
 
 
 def read_labels(path: str | os.PathLike) -> tuple[list[str], list[str], np.ndarray]:

@@ -61,6 +61,8 @@ class VideoArticulation:
     #: what the input's orientation tag asks a viewer to do with the frames (``""``: nothing), e.g.
     #: ``"turn 90°"``: the frames are read as stored, and positions are in stored pixels
     orientation: str = ""
+    #: 16-bit image files: ``(bits, largest value)`` (:attr:`~artmotion.io.sequence.Sequence.depth`)
+    depth: tuple[int, int] | None = None
 
     @property
     def model(self) -> str:
@@ -154,6 +156,7 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     res.snapshots = kept
     res.fps_known = seq.fps_known
     res.orientation = seq.orientation
+    res.depth = seq.depth
     return res
 
 

@@ -29,20 +29,13 @@ def _read_annotations(path: Path) -> dict:
     return heads
 
 
-def _depth(paths) -> int | None:
-    """The bit depth of 16-bit frames (:func:`~artmotion.tracking.instruments.track.frame_depth`),
-    said on stderr when they are read as fewer than 16 bits (a 12-bit camera's 0-4095 read by their
-    top 8 bits are nearly black)."""
-    from artmotion.tracking.instruments.track import frame_depth
+def _say_depth(seq) -> None:
+    """Say on stderr when 16-bit frames are read as fewer bits (a 12-bit camera's 0-4095 read by
+    their top 8 bits are nearly black; :attr:`~artmotion.io.sequence.Sequence.depth`)."""
+    from artmotion.io.media import depth_note
 
-    depth = frame_depth(paths) if paths else None
-    if depth is None:
-        return None
-    bits, top = depth
-    if bits < 16:
-        typer.echo(f"note: 16-bit frames with values up to {top} (in the first ones): read as {bits}-bit, "
-                   f"{2**bits - 1} scaled to 255", err=True)
-    return bits
+    if depth_note(seq.depth):
+        typer.echo(f"note: {depth_note(seq.depth)}", err=True)
 
 
 def _numbered_frames(source: str):
@@ -96,11 +89,11 @@ def train(
     used = [n for n in sorted(heads) if n in by_number]
     if not used:
         raise InputError(f"no annotated frame is in {frames} (frame numbers {min(heads)}-{max(heads)})", path=tools_csv)
+    from artmotion.io.media import read_frame
     from artmotion.tracking.instruments.detector import check_frame_size
-    from artmotion.tracking.instruments.track import read_frame
 
-    bits = _depth([by_number[n] for n in used])   # (tool track reads its frames the same way)
-    imgs = [read_frame(by_number[n], bits) for n in used]
+    _say_depth(seq)   # (tool track reads its frames the same way)
+    imgs = [read_frame(by_number[n], seq.depth[0] if seq.depth else None) for n in used]
     (H, W), _ = Counter(img.shape[:2] for img in imgs).most_common(1)[0]
     for n, img in zip(used, imgs):  # one detector, one frame size: the odd frame named
         if img.shape[:2] != (H, W):
@@ -155,12 +148,12 @@ def track(
     det = ToolDetector.load(model)
     if threshold is not None:
         det.threshold = threshold
-    bits = _depth(seq.images)
+    _say_depth(seq)
     tracker = ToolTracker(det)
     t0 = time.perf_counter()
     pred = {numbers[i - 1] if numbers else i: rows
             for i, rows in track_sequence(seq, det, sys.stderr.isatty() if progress is None else progress,
-                                          tracker=tracker, bits=bits)}
+                                          tracker=tracker)}
     seconds = time.perf_counter() - t0
     write_predictions(out, pred)
     if tracker.capped:

@@ -35,21 +35,17 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import check_frame, read_image
+from artmotion.io.media import check_frame
 from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
 from artmotion.tracking.instruments.detector import finite_rows, scale_to
 from artmotion.tracking.pote import fuse
 
-__all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot", "frame_depth", "read_frame"]
+__all__ = ["ToolTracker", "track_tools", "track_sequence", "to_mot"]
 
 #: detections on this many frames confirm a head (a tentative head's rows wait for it)
 CONFIRM_HITS = 2
-#: the bit depths a 16-bit frame's values may come from (cameras store 10, 12 or 14 bits in 16; 8:
-#: 8-bit pictures saved as 16-bit); how many of a sequence's first frames decide it
-DEPTHS = (8, 10, 12, 14, 16)
-DEPTH_FRAMES = 5
 #: a frame whose brightest pixel is below this (of 255) is nearly black
 DARK = 32
 _LK = {"winSize": (15, 15), "maxLevel": 3, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
@@ -66,40 +62,6 @@ class _Head:
     hits: int = 1
     miss: int = 0
     early: list[tuple[int, list[float]]] = field(default_factory=list)  # (frame, row) while tentative
-
-
-def frame_depth(paths) -> tuple[int, int] | None:
-    """``(bits, largest value)`` of a sequence of 16-bit image files, from its first
-    :data:`DEPTH_FRAMES` frames: the one of :data:`DEPTHS` whose top bit their largest value uses
-    (a 12-bit camera's 2048-4095 in a 16-bit PNG: 12), else 16; None for 8-bit frames."""
-    top = -1
-    for p in list(paths)[:DEPTH_FRAMES]:
-        img = read_image(p, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-        if img.dtype != np.uint16:
-            return None
-        top = max(top, int(img.max()))
-    if top < 0:
-        return None
-    # a depth is read only from values that use its top bit: frames that start dark (a fade-in, a
-    # lens cap) are 16-bit frames read as before, not a 6-bit camera whose later frames saturate
-    bits = next((b for b in DEPTHS if 2 ** (b - 1) <= top < 2**b), 16)
-    return bits, top
-
-
-def read_frame(path, bits: int | None = None) -> np.ndarray:
-    """A frame as a BGR uint8 image: a 16-bit one of ``bits`` bits (:func:`frame_depth`, the same
-    for every frame of a sequence) scaled from its ``2**bits - 1`` to 255 (a larger value is an
-    :class:`InputError`: the depth was wrong);
-    ``bits`` None or 16 reads it as OpenCV does (its top 8 bits)."""
-    if bits is None or bits == 16:
-        return read_image(path)
-    img = read_image(path, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-    if img.dtype == np.uint8:
-        return img
-    if int(img.max()) >= 2**bits:
-        raise InputError(f"values up to {int(img.max())}, above the {bits} bits the sequence's first frames implied "
-                         f"(their values stay below {2**bits}): its frames are of more bits than they showed", path=path)
-    return cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
 
 
 def _window(h: _Head, r: float, shape: tuple[int, ...]) -> tuple[int, int, int, int] | None:
@@ -369,27 +331,11 @@ def track_tools(frames: Iterable[tuple], detector, tracker: ToolTracker | None =
         yield done(next(iter(pending)))
 
 
-def _frames_of_depth(seq, bits: int) -> Iterator[tuple[int, np.ndarray]]:
-    """The frames of an image sequence read by :func:`read_frame` (1-based numbers)."""
-    for i, p in enumerate(seq.images, start=1):
-        img = read_frame(p, bits)
-        if img.shape[:2] != (seq.height, seq.width):
-            raise InputError(f"image size {img.shape[1]}x{img.shape[0]} differs from the sequence's "
-                             f"{seq.width}x{seq.height}", path=p)
-        yield i, img
-
-
 def track_sequence(seq, detector, progress: bool = False, tracker: ToolTracker | None = None,
-                   bits: int | None = None, **options) -> Iterator[tuple[int, np.ndarray]]:
+                   **options) -> Iterator[tuple[int, np.ndarray]]:
     """:func:`track_tools` over an opened :class:`~artmotion.io.sequence.Sequence` (1-based
-    frame numbers), with a progress bar when ``progress``. ``bits``: an image sequence's 16-bit
-    frames are of that many bits (:func:`frame_depth`, :func:`read_frame`)."""
-    if bits is None or bits == 16 or seq.images is None:
-        frames = seq.frames()
-    else:
-        from artmotion.io.sequence import prefetched
-
-        frames = prefetched(_frames_of_depth(seq, bits), 8)
+    frame numbers), with a progress bar when ``progress``."""
+    frames = seq.frames()
     if progress:
         from tqdm import tqdm
 

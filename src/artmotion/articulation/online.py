@@ -715,8 +715,8 @@ class OnlineEstimator(Params):
         """Starting weights of the samples: Student-t weights of their departures from the line
         through their two neighbours (second differences, at times ``T``), the same for every
         model. A plain least-squares start lets a glitch drag every model's fit into a wrong
-        Student-t optimum (one sample 1 m off turned a circle prismatic); these give the glitch no
-        weight, and no model gains by its own outliers."""
+        Student-t optimum (one sample 1 m off turned a circle prismatic); these give the glitch
+        little weight, and no model gains by its own outliers."""
         if self.nu is None or len(X) < 5:
             return None
         span = T[2:] - T[:-2]

@@ -68,7 +68,7 @@ class Sequence:
     Attributes: ``name``, ``fps``, ``width``, ``height``, ``length`` (frame count), ``det_path``
     and ``gt_path`` (``None`` when absent), ``path`` (what was opened), ``images`` (the image
     files, or ``None`` for a video) and ``depth`` (16-bit image files: ``(bits, largest value)``
-    of the first frames, :func:`~artmotion.io.media.frame_depth`; frames of fewer than 16 bits are
+    of frames spread over the folder, :func:`~artmotion.io.media.frame_depth`; frames of fewer than 16 bits are
     read scaled from ``2**bits - 1`` to 255, :func:`~artmotion.io.media.depth_note` says so).
     """
 

@@ -105,8 +105,8 @@ def run_cmd(
                        fps=fps)
     from artmotion.io.media import depth_note
 
-    if depth_note(res.depth):
-        typer.echo(f"note: {depth_note(res.depth)}", err=True)
+    if note := depth_note(res.depth):
+        typer.echo(f"note: {note}", err=True)
     why = too_short(res.num_tracks, res.frames)
     typer.echo(f"{res.name}: {res.num_tracks} tracks, {len(res.events)} events, {len(res.sentences)} sentences"
                f" in {res.seconds:.1f} s{': ' + why if why else ''}")

@@ -53,7 +53,7 @@ class RunResult:
     pose: dict | None = None
     #: frames of the input
     frames: int = 0
-    #: 16-bit image files: ``(bits, largest value)`` of the first frames (:attr:`Sequence.depth`)
+    #: 16-bit image files: ``(bits, largest value)`` of frames spread over them (:attr:`Sequence.depth`)
     depth: tuple[int, int] | None = None
 
     @property

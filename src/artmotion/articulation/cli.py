@@ -184,8 +184,8 @@ def video(
         _write_video_outputs(out, res, d)
     from artmotion.io.media import depth_note
 
-    if depth_note(res.depth):
-        typer.echo(f"note: {depth_note(res.depth)}", err=True)
+    if note := depth_note(res.depth):
+        typer.echo(f"note: {note}", err=True)
     if as_json:
         typer.echo(json.dumps(d, allow_nan=False))
         return

@@ -137,20 +137,16 @@ class Sequence:
         fits = ({self.height // reduce, want[0]}, {self.width // reduce, want[1]})
         if self.images is not None:
             bits = self.depth[0] if self.depth is not None and self.depth[0] < 16 else None
+            # OpenCV's reduced decoding reads 8 bits: frames of another depth are read whole, then reduced
+            k, fit = (reduce, fits) if bits is None else (1, ({self.height}, {self.width}))
             for i, p in enumerate(self.images, start=1):
-                if bits is None:
-                    img = read_image(p, _REDUCED[reduce])
-                else:  # (OpenCV's reduced decoding reads 8 bits)
-                    img = read_frame(p, bits)
-                    if img.shape[:2] != (self.height, self.width):
-                        raise InputError(f"image size {img.shape[1]}x{img.shape[0]} differs from the sequence's "
-                                         f"{self.width}x{self.height}", path=p)
-                    if reduce > 1:
-                        img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
-                if img.shape[0] not in fits[0] or img.shape[1] not in fits[1]:
+                img = read_image(p, _REDUCED[reduce]) if bits is None else read_frame(p, bits)
+                if img.shape[0] not in fit[0] or img.shape[1] not in fit[1]:
                     raise InputError(
-                        f"image size {img.shape[1] * reduce}x{img.shape[0] * reduce} differs from the sequence's "
+                        f"image size {img.shape[1] * k}x{img.shape[0] * k} differs from the sequence's "
                         f"{self.width}x{self.height}", path=p)
+                if k < reduce:
+                    img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield i, img
             return
         assert self.video is not None  # (a sequence is frames or a video)

@@ -95,8 +95,8 @@ def track_command(
     kinds = ", ".join(f"{counts[k]} {k}" for k in ("enter", "exit", "merge", "split") if k in counts)
     assumed = "" if seq.fps_known else " (assumed; give --fps)"
     stored = f" as stored (not turned as its orientation tag asks: {seq.orientation})" if seq.orientation else ""
-    if depth_note(seq.depth):
-        stored += f" ({depth_note(seq.depth)})"
+    if note := depth_note(seq.depth):
+        stored += f" ({note})"
     typer.echo(f"{seq.name}: {res.frames} frames {seq.width}x{seq.height}{stored} @ {seq.fps:g} fps{assumed}, "
                f"detections: {res.detector}, experts: {','.join(res.experts)}"
                f"{' (online)' if online else ''}")

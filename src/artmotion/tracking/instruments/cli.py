@@ -34,8 +34,8 @@ def _say_depth(seq) -> None:
     their top 8 bits are nearly black; :attr:`~artmotion.io.sequence.Sequence.depth`)."""
     from artmotion.io.media import depth_note
 
-    if depth_note(seq.depth):
-        typer.echo(f"note: {depth_note(seq.depth)}", err=True)
+    if note := depth_note(seq.depth):
+        typer.echo(f"note: {note}", err=True)
 
 
 def _numbered_frames(source: str):

@@ -272,3 +272,25 @@ def test_one_glitch_does_not_flip_the_answer(glitch, n):
     res = estimate_online(X)
     assert res.model == "revolute" and res.probabilities["revolute"] > 0.9, res.probabilities
     assert res.configuration["radius"] == pytest.approx(0.4, abs=0.01)
+
+
+def test_fitted_is_the_robust_fit_on_a_copy():
+    """``fitted(name)`` is what a caller acting on the decision takes (SLAM's joint): the robust fit
+    to every sample, on a copy, so that neither the estimator's own filters nor its answer move."""
+    rng = np.random.default_rng(5)
+    th = np.linspace(0.0, 1.4, 99)
+    X = np.column_stack([1.0 + 0.4 * np.cos(th), 2.0 + 0.4 * np.sin(th), np.full(99, 0.5)])
+    X += rng.normal(0.0, 1e-3, X.shape)
+    X[50] += (1.0, 0.0, 0.0)
+    est = OnlineEstimator()
+    for x in X:
+        est.update(x)
+    own = [(f, f.model.radius if f.model.name == "revolute" else None) for f in est.filters]
+    before = est.result().configuration
+    f = est.fitted("revolute")
+    assert all(f is not g and f.model is not g.model for g, _ in own)
+    assert f.model.radius == pytest.approx(0.4, abs=0.01)
+    assert [(g, g.model.radius if g.model.name == "revolute" else None) for g in est.filters] == own
+    assert est.result().configuration == before
+    with pytest.raises(ValueError, match="no fitted model"):
+        est.fitted("free")

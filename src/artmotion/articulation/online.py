@@ -896,6 +896,39 @@ class OnlineEstimator(Params):
             self.first_decision = (d, k)
         return dict(zip(self.names, p))
 
+    def _final_filters(self, names=None) -> dict:
+        """The filters of models ``names`` (all by default) with their configurations fitted to all
+        samples so far, as at a re-fit (robust start and Student-t re-weighting), on copies so that
+        updates may go on; the filters themselves when the last re-fit saw every sample."""
+        assert self.filters is not None
+        X = self.X
+        stale = self._n > self._last_fit
+        floor = self._floor(X) if stale else 0.0
+        w0 = self._smooth_weights(X, self.T) if stale else None
+        final = {}
+        for g in self.filters:
+            if names is not None and g.model.name not in names:
+                continue
+            if stale:
+                g = copy.copy(g)
+                g.model = copy.deepcopy(g.model)
+                self._fit_model(g, X, floor, w0)
+                g.x = None  # the filter state belonged to the previous configuration
+            final[g.model.name] = g
+        return final
+
+    def fitted(self, name: str) -> _ModelFilter:
+        """A copy of model ``name``'s filter with its configuration fitted robustly to all samples so
+        far: what a caller that acts on Algorithm 1's decision should use, not a plain least-squares
+        fit that one glitch drags."""
+        if self.filters is None or name not in self.names:
+            raise ValueError(f"no fitted model {name!r}")
+        f = self._final_filters({name})[name]
+        if any(f is g for g in self.filters):
+            f = copy.copy(f)
+            f.model = copy.deepcopy(f.model)
+        return f
+
     def result(self, horizon: int = 5) -> OnlineResult:
         """What Algorithm 1 found so far, with the ``horizon`` samples it predicts next (a whole number >= 0)."""
         horizon = check_range("horizon", horizon, 0, 10**6, integer=True)
@@ -918,16 +951,7 @@ class OnlineEstimator(Params):
                 decided_at -= 1
         X = self.X
         T = self.T
-        final = {}
-        floor = self._floor(X) if self._n > self._last_fit else None
-        w0 = self._smooth_weights(X, T) if floor is not None else None
-        for g in self.filters:  # final configurations from all samples (on copies: updates may go on)
-            if floor is not None:
-                g = copy.copy(g)
-                g.model = copy.deepcopy(g.model)
-                self._fit_model(g, X, floor, w0)
-                g.x = None  # the filter state belonged to the previous configuration
-            final[g.model.name] = g
+        final = self._final_filters()
         f = final[self.names[best]]
         fits = {k: g.model for k, g in final.items()}
         noise = {k: g.sigma for k, g in final.items()}

@@ -256,11 +256,9 @@ class LandmarkModels:
         self.verdict[i] = name
         if name == "static":
             return Decision("static")
-        assert est.filters is not None  # a moving model leads only once the filters were fit
-        f = est.filters[est.names.index(name)]
+        f = est.fitted(name)  # robust, as Algorithm 1 fits it: one glitch does not drag the joint
         model = f.model
         X = np.asarray(est.X)
-        model.fit(X)
         # motion variable from the current sighting: q = G(m), dq/dm = J^+ (Eq. 4.28 inverted)
         if name == "revolute":  # (a line's q is the joint's coordinate of m, below)
             q = float(model.motion(np.array([[m[0], m[1], 0.0]]))[0, 0])

@@ -16,7 +16,7 @@ from pathlib import Path
 import typer
 
 from artmotion import __version__
-from artmotion.errors import ArtmotionError, Interrupted
+from artmotion.errors import ArtmotionError, Interrupted, one_line
 
 app = typer.Typer(
     name="artmotion",
@@ -104,7 +104,7 @@ def _fail(message: str, code: int) -> int:
     have the file descriptor 2 pointed at a scratch file while a codec decodes
     (``artmotion.io.media``): the line waits for it, or it would land there and be lost when the
     process ends at once (an interrupted run)."""
-    message = " ".join(part.strip() for part in message.splitlines() if part.strip())   # always one line
+    message = one_line(message)
     media = sys.modules.get("artmotion.io.media")     # never imported: nothing was decoded
     lock = media.stderr_lock if media is not None else None
     held = lock is not None and lock.acquire(timeout=10)

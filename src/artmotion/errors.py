@@ -42,6 +42,12 @@ class Interrupted(BaseException):
         self.kept = kept
 
 
+def one_line(message: str) -> str:
+    """``message`` on one line: its non-blank lines stripped and joined by spaces (an error from a
+    library, e.g. GTSAM's indeterminate system, can run over several)."""
+    return " ".join(part.strip() for part in message.splitlines() if part.strip())
+
+
 #: largest seed NumPy's legacy generators and scikit-learn accept (``[0, 2**32 - 1]``)
 MAX_SEED = 2**32 - 1
 

@@ -174,6 +174,61 @@ def test_batch_runs_again_an_item_whose_input_changed(tmp_path):
     assert o.status == "skipped", o
 
 
+def test_batch_runs_again_a_run_that_read_12_bit_frames_by_their_top_8_bits(tmp_path):
+    """The manifest records the depth the frames were read at (and batch's line says it). A run made
+    before it did read 12-bit frames in 16-bit PNGs by their top 8 bits (nearly black), and batch
+    skipped it as finished (its fingerprint is the same): it runs again now. An 8-bit run from
+    before is still finished."""
+    import json
+
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    archive = tmp_path / "archive"
+    for name, dtype, top in (("twelve", np.uint16, 4095), ("eight", np.uint8, 255)):
+        (archive / name / "img1").mkdir(parents=True)
+        (archive / name / "det").mkdir()
+        for k in range(1, 4):
+            frame = rng.integers(0, top + 1, (48, 64, 3)).astype(dtype)
+            cv2.imwrite(str(archive / name / "img1" / f"{k:06d}.png"), frame)
+        (archive / name / "det" / "det.txt").write_text("".join(f"{k},-1,10,10,8,16,0.9,-1,-1,-1\n" for k in (1, 2, 3)))
+        (archive / name / "seqinfo.ini").write_text(f"[Sequence]\nname={name}\nimDir=img1\nframeRate=10\nseqLength=3\n"
+                                                    "imWidth=64\nimHeight=48\nimExt=.png\n")
+    out = tmp_path / "runs"
+
+    def statuses():
+        return {os.path.basename(o.item): o.status for o in run_batch(archive, out, processes=False).outcomes}
+
+    notes = {os.path.basename(o.item): o.note for o in run_batch(archive, out, processes=False).outcomes}
+    assert "read as 12-bit" in notes["twelve"] and notes["eight"] == ""  # batch's done line says it
+    assert load_run(out / "twelve")["sequence"]["bits"] == 12 and load_run(out / "eight")["sequence"]["bits"] == 8
+    assert statuses() == {"twelve": "skipped", "eight": "skipped"}
+    for name in ("twelve", "eight"):  # as the code before wrote them
+        path = out / name / "run.json"
+        run = json.loads(path.read_text())
+        del run["sequence"]["bits"]
+        path.write_text(json.dumps(run))
+    assert statuses() == {"twelve": "done", "eight": "skipped"}
+    assert load_run(out / "twelve")["sequence"]["bits"] == 12
+
+
+def test_a_batch_item_that_fails_with_a_message_of_several_lines_is_reported_on_one(tmp_path, monkeypatch):
+    """A library's error can run over several lines (GTSAM's indeterminate system does); the batch
+    prints one line per failed item, so its outcome's message is one line."""
+    from conftest import SAMPLE
+
+    import artmotion.app.pipeline as pipeline
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("Indeterminant linear system detected\n  near variable x3.\n\nThrown when ill-posed.")
+
+    monkeypatch.setattr(pipeline, "run_pipeline", fails)
+    small_sequence(SAMPLE, tmp_path / "archive" / "a", n=3)
+    [o] = run_batch(tmp_path / "archive", tmp_path / "runs", processes=False).outcomes
+    assert o.status == "failed" and o.internal
+    assert "\n" not in o.message and "detected near variable x3. Thrown when ill-posed." in o.message, o.message
+
+
 def test_batch_items_whose_folders_would_collide_keep_their_runs(tmp_path):
     """``clip.avi`` and ``clip.AVI`` both went to ``runs/clip-avi``: both "done", one run lost."""
     from artmotion.articulation.synthetic import part_video

@@ -19,10 +19,10 @@ from pathlib import Path
 
 from artmotion._native import signals_held
 from artmotion.app.pipeline import is_finished, load_run
-from artmotion.errors import ArtmotionError, InputError, Interrupted
+from artmotion.errors import ArtmotionError, InputError, Interrupted, one_line
 from artmotion.io import check_apart
 from artmotion.io.atomic import check_can_create_in
-from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS
+from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS, depth_note
 
 #: why an entry of a batch's folder is not run
 NOT_AN_ITEM = "not a video, a folder of images or a MOTChallenge folder"
@@ -212,6 +212,11 @@ class ItemOutcome:
     sentences: int = 0
     #: the failure is a bug (or a lost worker), not bad input
     internal: bool = False
+    #: how a done item's frames were read, when not as OpenCV reads them (:func:`depth_note`)
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        self.message = one_line(self.message)  # the command line prints one line per failed item
 
 
 @dataclass
@@ -264,7 +269,7 @@ def run_item(item: str, out_dir: str, single_thread: bool = True, batch: str | N
         return done
     try:
         res = run_pipeline(item, out_dir, progress=False, batch=batch)
-        return ItemOutcome(item, "done", out_dir, time.perf_counter() - t0,
+        return ItemOutcome(item, "done", out_dir, time.perf_counter() - t0, note=depth_note(res.depth),
                            tracks=res.num_tracks, sentences=len(res.sentences))
     except ArtmotionError as exc:
         msg = str(exc)

@@ -228,7 +228,7 @@ def batch_cmd(
                 # each line as the item ends (flushed: an interrupted batch kept none of them before)
                 if outcome.status == "done":
                     typer.echo(f"done     {Path(outcome.item).name}: {outcome.tracks} tracks, {outcome.sentences} "
-                               f"sentences, {outcome.seconds:.1f} s")
+                               f"sentences, {outcome.seconds:.1f} s{f' ({outcome.note})' if outcome.note else ''}")
                 elif outcome.status == "skipped":
                     typer.echo(f"skipped  {Path(outcome.item).name}: already finished")
                 elif outcome.status == "ignored":

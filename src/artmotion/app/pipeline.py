@@ -295,7 +295,8 @@ def _write_run(out: Path, seq, source, fingerprint: str, tracks: np.ndarray, eve
         "name": seq.name,
         "source": str(Path(source).resolve()),
         "fingerprint": fingerprint,
-        "sequence": {"length": seq.length, "fps": seq.fps, "width": seq.width, "height": seq.height},
+        "sequence": {"length": seq.length, "fps": seq.fps, "width": seq.width, "height": seq.height,
+                     "bits": frame_bits(seq)},
         "files": {"results": "results.txt", "events": "events.jsonl", "sentences": "sentences.txt",
                   "report": "report.html", **({"video": "annotated.mp4"} if video else {})},
         "detections": detections,
@@ -382,10 +383,22 @@ def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = N
     from artmotion.tracking import open_sequence
 
     try:
-        fingerprint = source_fingerprint(open_sequence(source))
+        seq = open_sequence(source)
+        fingerprint = source_fingerprint(seq)
     except (InputError, OSError):       # unreadable now: not finished (running it again says why)
         return False
-    return run.get("fingerprint") == fingerprint
+    # a manifest that does not say the depth may be of a run that read 16-bit frames by their top 8
+    # bits (12-bit ones nearly black): it is run again unless the frames are read that way now
+    was, now = (run.get("sequence") or {}).get("bits"), frame_bits(seq)
+    same_depth = now in (8, 16) if was is None else was == now
+    return run.get("fingerprint") == fingerprint and same_depth
+
+
+def frame_bits(seq) -> int:
+    """The bits per sample the sequence's frames are read at (its :attr:`depth`): 8, 16 for 16-bit
+    frames read by their top 8 bits, as OpenCV reads them, or fewer for those scaled from their
+    range (12-bit values in 16-bit files)."""
+    return seq.depth[0] if seq.depth is not None else 8
 
 
 def load_run(run_dir: str | os.PathLike) -> dict:
@@ -441,9 +454,10 @@ def _manifest_problem(run) -> str | None:
         return f"'sha256' is not an object of SHA-256 digests of {', '.join(CHECKED_FILES)}"
     seq = run.get("sequence", {})
     ranges = {"length": (1, MAX_FRAME), "fps": (MIN_FPS, MAX_FPS), "width": (1, MAX_COORD), "height": (1, MAX_COORD)}
-    if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_number(seq[k], *r) for k, r in ranges.items()):
+    if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_number(seq[k], *r) for k, r in ranges.items()) \
+            or seq.get("bits") is not None and not _is_int(seq["bits"], 1, 16):
         return ("'sequence' is not an object of numbers in range (length in [1, 10000000], fps in [0.001, 1000], "
-                "width and height in [1, 1e6])")
+                "width and height in [1, 1e6], bits in [1, 16])")
     if not isinstance(run["track_summary"], list) or not all(
             isinstance(t, dict) and _is_int(t.get("id")) and all(_is_frame(t.get(k)) for k in ("first_frame", "last_frame"))
             and _is_int(t.get("boxes"), 0, MAX_FRAME) for t in run["track_summary"]):

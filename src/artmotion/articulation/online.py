@@ -896,10 +896,11 @@ class OnlineEstimator(Params):
             self.first_decision = (d, k)
         return dict(zip(self.names, p))
 
-    def _final_filters(self, names=None) -> dict:
+    def _final_filters(self, names=None, copies: bool = False) -> dict:
         """The filters of models ``names`` (all by default) with their configurations fitted to all
         samples so far, as at a re-fit (robust start and Student-t re-weighting), on copies so that
-        updates may go on; the filters themselves when the last re-fit saw every sample."""
+        updates may go on; the filters themselves when the last re-fit saw every sample, unless
+        ``copies``."""
         assert self.filters is not None
         X = self.X
         stale = self._n > self._last_fit
@@ -909,9 +910,10 @@ class OnlineEstimator(Params):
         for g in self.filters:
             if names is not None and g.model.name not in names:
                 continue
-            if stale:
+            if stale or copies:
                 g = copy.copy(g)
                 g.model = copy.deepcopy(g.model)
+            if stale:
                 self._fit_model(g, X, floor, w0)
                 g.x = None  # the filter state belonged to the previous configuration
             final[g.model.name] = g
@@ -923,11 +925,7 @@ class OnlineEstimator(Params):
         fit that one glitch drags."""
         if self.filters is None or name not in self.names:
             raise ValueError(f"no fitted model {name!r}")
-        f = self._final_filters({name})[name]
-        if any(f is g for g in self.filters):
-            f = copy.copy(f)
-            f.model = copy.deepcopy(f.model)
-        return f
+        return self._final_filters({name}, copies=True)[name]
 
     def result(self, horizon: int = 5) -> OnlineResult:
         """What Algorithm 1 found so far, with the ``horizon`` samples it predicts next (a whole number >= 0)."""

@@ -100,6 +100,13 @@ class Sequence:
     def __len__(self) -> int:
         return self.length
 
+    @property
+    def bits(self) -> int | None:
+        """The bits its 16-bit frames hold when fewer than 16 (they are read scaled from
+        ``2**bits - 1`` to 255, :func:`~artmotion.io.media.read_frame`); None when its frames are
+        read as OpenCV reads them (8-bit, or 16-bit by their top 8 bits)."""
+        return self.depth[0] if self.depth is not None and self.depth[0] < 16 else None
+
     def set_fps(self, fps: float | None, name: str = "--fps") -> None:
         """Take ``fps`` (frames/s, within the range a frame rate may have) as the frame rate, the
         input's own or the assumed :data:`DEFAULT_FPS` notwithstanding; ``None`` keeps it."""
@@ -136,7 +143,7 @@ class Sequence:
         # a reduced decode rounds the size up (JPEG) or down: either is the sequence's size
         fits = ({self.height // reduce, want[0]}, {self.width // reduce, want[1]})
         if self.images is not None:
-            bits = self.depth[0] if self.depth is not None and self.depth[0] < 16 else None
+            bits = self.bits
             # OpenCV's reduced decoding reads 8 bits: frames of another depth are read whole, then reduced
             k, fit = (reduce, fits) if bits is None else (1, ({self.height}, {self.width}))
             for i, p in enumerate(self.images, start=1):

@@ -93,7 +93,7 @@ def train(
     from artmotion.tracking.instruments.detector import check_frame_size
 
     _say_depth(seq)   # (tool track reads its frames the same way)
-    imgs = [read_frame(by_number[n], seq.depth[0] if seq.depth else None) for n in used]
+    imgs = [read_frame(by_number[n], seq.bits) for n in used]
     (H, W), _ = Counter(img.shape[:2] for img in imgs).most_common(1)[0]
     for n, img in zip(used, imgs):  # one detector, one frame size: the odd frame named
         if img.shape[:2] != (H, W):

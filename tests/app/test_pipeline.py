@@ -212,6 +212,33 @@ def test_batch_runs_again_a_run_that_read_12_bit_frames_by_their_top_8_bits(tmp_
     assert load_run(out / "twelve")["sequence"]["bits"] == 12
 
 
+def test_batch_runs_again_a_run_of_16_bit_frames_holding_8_bit_values(tmp_path):
+    """16-bit PNGs whose values stay below 256 are read as 8 bits, scaled as they are; a run whose
+    manifest does not say the depth read them by their top 8 bits (black). The check took the
+    recorded 8 for "read as before" and skipped it."""
+    import json
+
+    import numpy as np
+
+    seq = tmp_path / "archive" / "low"
+    (seq / "img1").mkdir(parents=True)
+    (seq / "det").mkdir()
+    for k in (1, 2, 3):
+        cv2.imwrite(str(seq / "img1" / f"{k:06d}.png"), np.full((48, 64, 3), 40 * k + 100, np.uint16))
+    (seq / "det" / "det.txt").write_text("".join(f"{k},-1,10,10,8,16,0.9,-1,-1,-1\n" for k in (1, 2, 3)))
+    (seq / "seqinfo.ini").write_text("[Sequence]\nname=low\nimDir=img1\nframeRate=10\nseqLength=3\n"
+                                     "imWidth=64\nimHeight=48\nimExt=.png\n")
+    out = tmp_path / "runs"
+    [o] = run_batch(tmp_path / "archive", out, processes=False).outcomes
+    assert o.status == "done" and "read as 8-bit" in o.note
+    path = out / "low" / "run.json"
+    run = json.loads(path.read_text())
+    del run["sequence"]["bits"]  # as the code before wrote it
+    path.write_text(json.dumps(run))
+    [o] = run_batch(tmp_path / "archive", out, processes=False).outcomes
+    assert o.status == "done", o
+
+
 def test_a_batch_item_that_fails_with_a_message_of_several_lines_is_reported_on_one(tmp_path, monkeypatch):
     """A library's error can run over several lines (GTSAM's indeterminate system does); the batch
     prints one line per failed item, so its outcome's message is one line."""

@@ -389,8 +389,8 @@ def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = N
         return False
     # a manifest that does not say the depth may be of a run that read 16-bit frames by their top 8
     # bits (12-bit ones nearly black): it is run again unless the frames are read that way now
-    was, now = (run.get("sequence") or {}).get("bits"), frame_bits(seq)
-    same_depth = now in (8, 16) if was is None else was == now
+    was = (run.get("sequence") or {}).get("bits")
+    same_depth = seq.bits is None if was is None else was == frame_bits(seq)
     return run.get("fingerprint") == fingerprint and same_depth
 
 

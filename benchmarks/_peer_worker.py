@@ -5,10 +5,11 @@ Runs in the peers' own environment (``make bench`` creates ``.venv-peers``: ``tr
 ``opencv-python``, which would replace the contrib ``cv2`` that artmotion needs), so it imports
 nothing from artmotion: only NumPy, OpenCV and the peers.
 
-    _peer_worker.py NAME SEQ_DIR DET_FILE OUT.txt
+    _peer_worker.py NAME SEQ_DIR DET_FILE OUT.txt [PARAMS_JSON]
 
-NAME is ``sort``, ``bytetrack``, ``ocsort`` or ``botsort``. The detections are fed as
-``supervision.Detections`` (boxes and confidences, no detector model); scores outside [0, 1] are
+NAME is ``sort``, ``bytetrack``, ``ocsort`` or ``botsort``; PARAMS_JSON, keyword arguments of the
+tracker's constructor (e.g. ``{"track_activation_threshold": 0.5}``; default: its defaults). The
+detections are fed as ``supervision.Detections`` (boxes and confidences, no detector model); scores outside [0, 1] are
 replaced by their mid-rank, as artmotion does. Writes MOTChallenge rows and prints a JSON line
 ``{"frames", "seconds", "peak_bytes"}`` (seconds of the tracking loop, frame decoding included for
 BoT-SORT, whose camera-motion compensation needs the images).
@@ -44,7 +45,7 @@ def _frames(seq: Path, length: int):
         cap.release()
 
 
-def main(name: str, seq: str, det: str, out: str) -> int:
+def main(name: str, seq: str, det: str, out: str, params: str = "{}") -> int:
     import supervision as sv
     import trackers
 
@@ -59,7 +60,7 @@ def main(name: str, seq: str, det: str, out: str) -> int:
         srt = np.sort(s)
         d[:, 6] = (np.searchsorted(srt, s, "left") + np.searchsorted(srt, s, "right")) / (2.0 * len(s))
     by_frame = {int(f): d[d[:, 0] == f] for f in np.unique(d[:, 0])}
-    tracker = getattr(trackers, PEERS[name])(frame_rate=fps)
+    tracker = getattr(trackers, PEERS[name])(frame_rate=fps, **json.loads(params))
     images = _frames(seq_dir, length) if name == "botsort" else None
     rows = []
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -83,4 +84,4 @@ def main(name: str, seq: str, det: str, out: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(*sys.argv[1:5]))
+    sys.exit(main(*sys.argv[1:6]))

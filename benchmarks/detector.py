@@ -7,7 +7,11 @@ Candidates: SSDLite-MobileNetV2 (``ssdlite``) with the shorter side of its input
 training size), 384 or 480 pixels, and OpenCV's HOG (``hog``, the floor). The input size is chosen
 by leave-one-sequence-out on the tracking objective (the mean of (MOTA + IDF1 + HOTA) / 3, as in
 ``benchmarks/tracking_loo.py``). Then the cheaper schedule of issue #12: the detector on every
-k-th frame only, the tracking experts carrying the boxes in between.
+k-th frame only, the tracking experts carrying the boxes in between. Last, the four peer trackers
+of ``benchmarks/tracking.py`` on the same SSDLite boxes (``--no-peers`` skips them; they need
+``.venv-peers``, made by ``make bench``): their score settings were made for other detectors' scores,
+so each peer's are chosen by leave-one-sequence-out too (:data:`PEER_GRID`), and the held-out
+scores are set against artmotion's default, the detector on every second frame.
 
 Detections are cached per sequence and candidate (``out/detections-<hash>/``, MOTChallenge text
 with the seconds they took), so a re-run only tracks. Prints the tables and writes them into
@@ -24,6 +28,7 @@ import argparse
 import hashlib
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -39,13 +44,26 @@ from tracking_loo import KEYS, SEQUENCES, _load  # noqa: E402
 from artmotion.geometry import iou  # noqa: E402
 from artmotion.io import read_mot, write_mot  # noqa: E402
 from artmotion.tracking import MultiObjectTracker, TrackerConfig, evaluate, open_sequence, run_tracker  # noqa: E402
+from artmotion.tracking.config import DETECT_EVERY  # noqa: E402
 from artmotion.tracking.detect import load_detections  # noqa: E402
 from artmotion.tracking.detectors import HOGDetector, SSDLiteDetector  # noqa: E402
 from artmotion.tracking.metrics import apply_rules  # noqa: E402
 
+COUNTS = ("IDS", "FP", "FN")
 SIDES = (300, 384, 480)
 CANDIDATES = {**{f"ssdlite-{s}": (SSDLiteDetector, {"short_side": s}) for s in SIDES}, "hog": (HOGDetector, {})}
 EVERY = (1, 2, 3, 5)
+#: each peer's score settings searched on the built-in detector's boxes, its defaults first (the
+#: keyword arguments of its constructor), each with the boxes under a score dropped beforehand
+#: (:data:`PEER_DROP`; 0.05 is the detector's own floor: none dropped)
+_PAIRS = ({}, {"track_activation_threshold": 0.5, "high_conf_det_threshold": 0.4},
+          {"track_activation_threshold": 0.4, "high_conf_det_threshold": 0.3},
+          {"track_activation_threshold": 0.3, "high_conf_det_threshold": 0.2})
+PEER_GRID = {"sort": ({}, *({"track_activation_threshold": t} for t in (0.4, 0.55, 0.7))),
+             "bytetrack": _PAIRS,
+             "ocsort": ({}, *({"high_conf_det_threshold": h} for h in (0.4, 0.3, 0.2))),
+             "botsort": _PAIRS}
+PEER_DROP = (0.05, 0.2, 0.3, 0.4)
 
 
 def _hash() -> str:
@@ -110,7 +128,7 @@ def track_scores(name: str, dets: dict, experts=("det", "motion"), every: int = 
     n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red, detect_every=every)
     rows, _ = tracker.finish(n)
     s = evaluate(gt_path, rows)
-    return {k: float(s[k]) for k in KEYS}
+    return {**{k: float(s[k]) for k in KEYS}, **{k: int(s[k]) for k in COUNTS}}
 
 
 def objective(s: dict) -> float:
@@ -155,6 +173,66 @@ def every_k(side: int, names, cache: Path, log=print) -> dict:
                 out.setdefault((k, ",".join(experts)), {})[name] = track_scores(name, dets, experts, k)
         log(f"{name}: every-k done")
     return out
+
+
+def peers_on_builtin(names, cache: Path, side: int, log=print) -> str:
+    """The peers on SSDLite's boxes (every frame, the ``side`` input), each peer's score settings
+    chosen by leave-one-sequence-out over :data:`PEER_GRID` x :data:`PEER_DROP`, against artmotion's
+    default (the detector on every second frame; every frame too, for reference): a markdown table
+    of the held-out scores."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from tracking import LABELS, PEERS, run_peer, score_table
+
+    points = {m: [(drop, p) for drop in PEER_DROP for p in PEER_GRID[m]] for m in PEERS}
+    res: dict = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = []
+        for name in names:
+            d = read_mot(cache / name / f"ssdlite-{side}.txt")
+            for drop in PEER_DROP:
+                path = Path(tmp) / f"{name}-{drop}.txt"
+                write_mot(path, d[d[:, 6] >= drop])
+                jobs += [(m, name, k, drop, path) for m in PEERS for k in range(len(PEER_GRID[m]))]
+
+        def go(job):
+            m, name, k, drop, path = job
+            out = Path(tmp) / f"{m}-{name}-{k}-{drop}.out"
+            run = run_peer(m, SEQUENCES[name], path, out, PEER_GRID[m][k])
+            if "error" in run:
+                raise RuntimeError(f"{m} on {name}: {run['error']}")
+            s = evaluate(SEQUENCES[name] / "gt" / "gt.txt", read_mot(out) if out.stat().st_size else np.zeros((0, 7)))
+            return m, name, (drop, PEER_GRID[m][k]), {**{q: float(s[q]) for q in KEYS}, **{q: int(s[q]) for q in COUNTS}}
+
+        with ThreadPoolExecutor(2) as pool:   # each job a process of its own
+            for m, name, point, s in pool.map(go, jobs):
+                res[(m, name, json.dumps(point))] = s
+    log("peers on the built-in detector's boxes: done")
+    held: dict = {}
+    chosen = {}
+    for m in PEERS:
+        per = {json.dumps(pt): {n: res[(m, n, json.dumps(pt))] for n in names} for pt in points[m]}
+        choice = loo_choice(per, names)     # ties: the first point (the defaults, nothing dropped)
+        for name in names:
+            chosen[(m, name)] = json.loads(choice[name])
+            held[(m, name)] = per[choice[name]][name]
+    dets = {n: detections(n, f"ssdlite-{side}", cache)[0] for n in names}
+    for n in names:
+        held[("artmotion", n)] = track_scores(n, dets[n], every=DETECT_EVERY)
+    table, verdict = score_table(held, names, ["artmotion", *PEERS])
+    every1 = {k: float(np.mean([track_scores(n, dets[n])[k] for n in names])) for k in KEYS}
+    lines = ["| peer | chosen per held-out sequence (boxes dropped under; settings) |", "|---|---|"]
+    for m in PEERS:
+        lines.append(f"| {LABELS[m]} | " + "; ".join(
+            f"{n}: {chosen[(m, n)][0]:g}, {', '.join(f'{k}={v:g}' for k, v in chosen[(m, n)][1].items()) or 'defaults'}"
+            for n in names) + " |")
+    a, b = verdict["_means"]["artmotion"], verdict["_best_mean"]
+    wins = [n for n in names if verdict.get(n)]
+    mean = lambda s: _cells(s).replace(" | ", " / ")  # noqa: E731
+    return (f"artmotion (SSDLite on every k-th frame, k = {DETECT_EVERY}) is at least the best peer in MOTA, IDF1 and "
+            f"HOTA on {len(wins)} of {len(names)} sequences; mean {mean(a)} against the best peer's {mean(b)} "
+            f"(HOTA {100 * (a['HOTA'] - b['HOTA']):+.1f}); artmotion with SSDLite on every frame {mean(every1)}."
+            "\n\n" + table + "\n\nThe peers' settings, chosen on the other four sequences:\n\n" + "\n".join(lines))
 
 
 def tables(res: dict, sides: dict, every: dict | None) -> str:
@@ -207,6 +285,7 @@ def main(argv=None) -> int:
     ap.add_argument("--sequences", default=",".join(SEQUENCES))
     ap.add_argument("--cache", default=None, help="detections cache (default: out/detections-<hash of detectors.py>)")
     ap.add_argument("--no-every", action="store_true", help="skip the every-k-th-frame schedule")
+    ap.add_argument("--no-peers", action="store_true", help="skip the peers on the built-in detector's boxes")
     args = ap.parse_args(argv)
     names = args.sequences.split(",")
     cache = Path(args.cache or ROOT / "out" / f"detections-{_hash()}")
@@ -218,6 +297,11 @@ def main(argv=None) -> int:
     print(text)
     if args.out != "-":
         replace_block(Path(args.out), "detector-benchmark", text)
+    if not args.no_peers:
+        text = peers_on_builtin(names, cache, sides["all"], log)
+        print(text)
+        if args.out != "-":
+            replace_block(Path(args.out), "detector-peers", text)
     return 0
 
 

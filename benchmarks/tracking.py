@@ -135,11 +135,13 @@ def speed_pair(seq: Path, det: Path, out: Path, rounds: int = 5) -> tuple[int, f
     return n, floor, run
 
 
-def run_peer(name: str, seq: Path, det: Path, out: Path) -> dict:
+def run_peer(name: str, seq: Path, det: Path, out: Path, params: dict | None = None) -> dict:
+    """Peer ``name`` on ``det`` of ``seq``, rows written to ``out``; ``params``: keyword arguments
+    of its constructor (default: its defaults)."""
     if not PEERS_PY.exists():
         return {"error": "peers not installed (make bench creates .venv-peers)"}
     proc = subprocess.run([str(PEERS_PY), str(ROOT / "benchmarks" / "_peer_worker.py"), name, str(seq), str(det),
-                           str(out)], capture_output=True, text=True)
+                           str(out), json.dumps(params or {})], capture_output=True, text=True)
     if proc.returncode != 0:
         return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1]}
     return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -165,5 +165,5 @@ def test_a_16_bit_sequence_that_starts_dark_is_not_read_as_fewer_bits(tmp_path):
         twelve.append(p)
     assert frame_depth(twelve[:5]) == (12, 3000)
     assert int(read_frame(twelve[0], 12).max()) == round(3000 * 255 / 4095)
-    with pytest.raises(InputError, match="values up to 5000, above the 12 bits"):
+    with pytest.raises(InputError, match="values up to 5000: more than the 12 bits"):
         read_frame(twelve[5], 12)

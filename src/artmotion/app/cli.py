@@ -88,6 +88,8 @@ def run_cmd(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: a folder "
                                                             "of images says none (25 is assumed), a video's header may "
                                                             "say it wrong."),
+    bits: Optional[int] = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of what frames "
+                                        "spread over them show (a 12-bit camera's dark first frames show fewer)."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys
@@ -102,7 +104,7 @@ def run_cmd(
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model,
-                       fps=fps)
+                       fps=fps, bits=bits)
     from artmotion.io.media import depth_note
 
     if note := depth_note(res.depth):

@@ -54,7 +54,7 @@ class RunResult:
     #: frames of the input
     frames: int = 0
     #: 16-bit image files: ``(bits, largest value)`` of frames spread over them (:attr:`Sequence.depth`)
-    depth: tuple[int, int] | None = None
+    depth: tuple[int, int | None] | None = None
 
     @property
     def report(self) -> Path:
@@ -179,6 +179,7 @@ def run_pipeline(
     detect_every: int = DETECT_EVERY,
     tool_model: str | os.PathLike | None = None,
     fps: float | None = None,
+    bits: int | None = None,
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
@@ -189,7 +190,8 @@ def run_pipeline(
     on every ``detect_every``-th frame. ``tool_model`` (from ``artmotion tool train``): track
     surgical instruments with it instead of people; their entries and exits come from the tracks.
     ``fps``: the frame rate, when the input does not say it (a folder of images; else 25 is
-    assumed) or says it wrong.
+    assumed) or says it wrong. ``bits``: the bits 16-bit image frames hold, when frames spread
+    over them said it wrong (:meth:`~artmotion.io.sequence.Sequence.set_bits`).
     """
     from artmotion.language.describe import parse_classes
     from artmotion.tracking import open_sequence
@@ -201,6 +203,7 @@ def run_pipeline(
     object_class = word
     seq = open_sequence(source)
     seq.set_fps(fps)
+    seq.set_bits(bits)
     # everything that can be checked is checked before the long work: the pose model (loaded and
     # tried on a crop), the ground truth
     pose = load_pose_model(pose_model) if pose_model is not None else None

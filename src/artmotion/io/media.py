@@ -329,21 +329,22 @@ def frame_depth(paths) -> tuple[int, int] | None:
     return bits, top
 
 
-def depth_note(depth: tuple[int, int] | None) -> str:
-    """What :func:`frame_depth`'s answer means for the frames (``""`` when they are read as OpenCV
-    reads them: 8-bit, or 16-bit by their top 8 bits)."""
+def depth_note(depth: tuple[int, int | None] | None) -> str:
+    """What :func:`frame_depth`'s answer (or a depth given with ``--bits``: ``(bits, None)``) means
+    for the frames (``""`` when they are read as OpenCV reads them: 8-bit, or 16-bit by their top 8
+    bits)."""
     if depth is None or depth[0] >= 16:
         return ""
     bits, top = depth
-    return (f"16-bit frames with values up to {top} (in {DEPTH_FRAMES} spread over the sequence): read as "
-            f"{bits}-bit, {2**bits - 1} scaled to 255")
+    seen = f"with values up to {top} (in {DEPTH_FRAMES} spread over the sequence)" if top is not None else "(--bits)"
+    return f"16-bit frames {seen}: read as {bits}-bit, {2**bits - 1} scaled to 255"
 
 
 def read_frame(path: str | os.PathLike, bits: int | None = None) -> np.ndarray:
-    """A frame as a BGR uint8 image: a 16-bit one of ``bits`` bits (:func:`frame_depth`, the same
-    for every frame of a sequence) scaled from its ``2**bits - 1`` to 255 (a larger value is an
-    :class:`InputError`: the depth was wrong); ``bits`` None or 16 reads it as OpenCV does (its top
-    8 bits)."""
+    """A frame as a BGR uint8 image: a 16-bit one of ``bits`` bits (:func:`frame_depth`, or as
+    given, the same for every frame of a sequence) scaled from its ``2**bits - 1`` to 255 (a larger
+    value is an :class:`InputError`: the depth was wrong); ``bits`` None or 16 reads it as OpenCV
+    does (its top 8 bits)."""
     import cv2
 
     if bits is None or bits >= 16:
@@ -352,9 +353,9 @@ def read_frame(path: str | os.PathLike, bits: int | None = None) -> np.ndarray:
     if img.dtype == np.uint8:
         return img
     if int(img.max()) >= 2**bits:
-        raise InputError(f"values up to {int(img.max())}, above the {bits} bits that {DEPTH_FRAMES} frames spread over "
-                         f"the sequence implied (their values stay below {2**bits}): its frames are of more bits "
-                         "than they showed", path=path)
+        raise InputError(f"values up to {int(img.max())}: more than the {bits} bits the frames are read at (the "
+                         f"depth {DEPTH_FRAMES} frames spread over the sequence showed, or --bits): give their depth "
+                         "with --bits (track, run and articulation video take it)", path=path)
     return cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
 
 

@@ -68,14 +68,15 @@ class Sequence:
     Attributes: ``name``, ``fps``, ``width``, ``height``, ``length`` (frame count), ``det_path``
     and ``gt_path`` (``None`` when absent), ``path`` (what was opened), ``images`` (the image
     files, or ``None`` for a video) and ``depth`` (16-bit image files: ``(bits, largest value)``
-    of frames spread over the folder, :func:`~artmotion.io.media.frame_depth`; frames of fewer than 16 bits are
+    of frames spread over the folder, :func:`~artmotion.io.media.frame_depth`, or ``(bits, None)``
+    as given to :meth:`set_bits`; frames of fewer than 16 bits are
     read scaled from ``2**bits - 1`` to 255, :func:`~artmotion.io.media.depth_note` says so).
     """
 
     def __init__(self, path: Path, name: str, fps: float, width: int, height: int, length: int,
                  images: list[Path] | None = None, video: Path | None = None,
                  det_path: Path | None = None, gt_path: Path | None = None, orientation: str = "",
-                 depth: tuple[int, int] | None = None):
+                 depth: tuple[int, int | None] | None = None):
         self.path = path
         self.name = name
         self.fps = float(fps)
@@ -106,6 +107,18 @@ class Sequence:
         ``2**bits - 1`` to 255, :func:`~artmotion.io.media.read_frame`); None when its frames are
         read as OpenCV reads them (8-bit, or 16-bit by their top 8 bits)."""
         return self.depth[0] if self.depth is not None and self.depth[0] < 16 else None
+
+    def set_bits(self, bits: int | None, name: str = "--bits") -> None:
+        """Read its 16-bit frames as holding ``bits`` bits (8 to 16; fewer than 16: scaled from
+        ``2**bits - 1`` to 255, 16: by their top 8 bits, as OpenCV reads them), whatever the frames
+        spread over it showed (:attr:`depth`); ``None`` keeps that. Frames that are not 16-bit
+        image files are an :class:`InputError`: the option would mean nothing there."""
+        if bits is None:
+            return
+        bits = check_range(name, bits, 8, 16, integer=True)
+        if self.depth is None:
+            raise InputError(f"{name} is for 16-bit image files; these frames are 8-bit", path=self.path)
+        self.depth = (int(bits), None)
 
     def set_fps(self, fps: float | None, name: str = "--fps") -> None:
         """Take ``fps`` (frames/s, within the range a frame rate may have) as the frame rate, the

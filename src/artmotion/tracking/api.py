@@ -158,7 +158,7 @@ _NONE = np.zeros((0, 5))
 
 def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progress: bool = False,
           video=None, config: TrackerConfig | None = None, fps: float | None = None,
-          detector="auto", detect_every: int = DETECT_EVERY) -> TrackResult:
+          detector="auto", detect_every: int = DETECT_EVERY, bits: int | None = None) -> TrackResult:
     """Track people in ``source`` (MOTChallenge folder, video file or image folder).
 
     ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
@@ -169,7 +169,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
     interpolation or tentative beginnings). ``progress``: a progress bar on stderr.
     ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
-    say it (a folder of images; else 25 is assumed) or says it wrong.
+    say it (a folder of images; else 25 is assumed) or says it wrong. ``bits``: the bits that 16-bit
+    image files hold, when frames spread over them said it wrong (:meth:`Sequence.set_bits`).
     """
     from artmotion.tracking.detect import read_detections
     from artmotion.tracking.detectors import Detector, check_detector, make_detector
@@ -182,6 +183,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     check_range("--detect-every", detect_every, 1, 100, integer=True)
     seq = open_sequence(source)
     seq.set_fps(fps, "frame rate")
+    seq.set_bits(bits, "bits")
     det_path = Path(det) if det is not None else seq.det_path
     model = None
     if det_path is not None:

@@ -57,6 +57,9 @@ def track_command(
     online: bool = typer.Option(False, "--online", help="Causal results only (no second, offline pass)."),
     fps: float = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: a folder of "
                                                   "images says none (25 is assumed), a video's header may say it wrong."),
+    bits: int = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of what "
+                                                   "frames spread over them show (a 12-bit camera's dark first "
+                                                   "frames show fewer)."),
     progress: bool = typer.Option(None, "--progress/--no-progress",
                                   help="Progress bar on stderr (default: when stderr is a terminal)."),
 ) -> None:
@@ -73,6 +76,7 @@ def track_command(
     if video and not video.lower().endswith(".mp4"):
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
     seq = open_sequence(source)  # (opened once: track() takes it as it is)
+    seq.set_bits(bits)
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
     check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path))

@@ -20,12 +20,16 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.errors import InputError, check_range, check_seed
+
+if TYPE_CHECKING:
+    from artmotion.io.sequence import Sequence
 
 __all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
@@ -62,7 +66,7 @@ class VideoArticulation:
     #: ``"turn 90°"``: the frames are read as stored, and positions are in stored pixels
     orientation: str = ""
     #: 16-bit image files: ``(bits, largest value)`` (:attr:`~artmotion.io.sequence.Sequence.depth`)
-    depth: tuple[int, int] | None = None
+    depth: tuple[int, int | None] | None = None
 
     @property
     def model(self) -> str:
@@ -111,16 +115,18 @@ def snapshot_frames(frames: int, count: int) -> list[int]:
     return sorted({int(round(x)) for x in np.linspace(0, frames - 1, count)}) if count and frames else []
 
 
-def analyze_video(source: str | os.PathLike, focal: float | None = None, max_parts: int = 3, seed: int = 0,
+def analyze_video(source: str | os.PathLike | Sequence, focal: float | None = None, max_parts: int = 3, seed: int = 0,
                   on_frame: Callable[[int, int], None] | None = None, snapshots: int = 0,
-                  fps: float | None = None) -> VideoArticulation:
+                  fps: float | None = None, bits: int | None = None) -> VideoArticulation:
     """Open ``source`` (a video file or a folder of frames) and find its moving parts' joints.
     ``on_frame(done, total)`` reports progress while tracking; ``snapshots`` frames spread over
     the video (the last one read included) are kept in the result, for :func:`parts_strip`:
     a whole number >= 0 (0: none), at most :data:`~artmotion.io.mot.MAX_FRAME`. ``fps``: the
     frame rate, when the input does not say it (a folder of frames; else 25 is assumed) or says
-    it wrong: the time a part must rest first, and the motion models, are in seconds. The frames are
-    read as stored, whatever the input's orientation tag asks (said in ``orientation``)."""
+    it wrong: the time a part must rest first, and the motion models, are in seconds. ``bits``: the
+    bits 16-bit image frames hold, when frames spread over them said it wrong
+    (:meth:`~artmotion.io.sequence.Sequence.set_bits`). The frames are read as stored, whatever the
+    input's orientation tag asks (said in ``orientation``)."""
     from artmotion.articulation.video.tracks import point_tracks
     from artmotion.io.mot import MAX_FRAME
     from artmotion.io.sequence import open_sequence
@@ -129,6 +135,7 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     snapshots = check_range("snapshots", snapshots, 0, MAX_FRAME, integer=True)
     seq = open_sequence(source)
     seq.set_fps(fps, "fps")
+    seq.set_bits(bits, "bits")
     total = len(seq)
     want = set(snapshot_frames(total, snapshots))
     kept: dict[int, np.ndarray] = {}
@@ -149,9 +156,9 @@ def analyze_video(source: str | os.PathLike, focal: float | None = None, max_par
     except InputError as exc:
         if exc.path is not None:
             raise
-        raise InputError(exc.reason, path=source) from None     # (no frames)
+        raise InputError(exc.reason, path=seq.path) from None     # (no frames)
     if tracks.frames < 2:
-        raise InputError(f"{tracks.frames} frame: motion needs at least two", path=source)
+        raise InputError(f"{tracks.frames} frame: motion needs at least two", path=seq.path)
     res = analyze_tracks(tracks, focal=focal, max_parts=max_parts, seed=seed)
     res.snapshots = kept
     res.fps_known = seq.fps_known

@@ -79,3 +79,38 @@ def test_bits_on_8_bit_frames_is_an_error(tmp_path, run_cli):
     assert code == 2 and "--bits is for 16-bit image files; these frames are 8-bit" in err
     code, out, err = run_cli("articulation", "video", eight, "--bits", 12)
     assert code == 2 and "--bits is for 16-bit image files" in err
+
+
+def test_the_depth_of_8_bit_pngs_comes_from_their_header(tmp_path, monkeypatch):
+    """Opening a folder of 8-bit PNGs decoded its first frame twice (its size, then its depth);
+    the depth now comes from the PNG header, and 16-bit ones are still decoded and measured."""
+    import artmotion.io.media as media
+
+    eight = _folder(tmp_path / "f8", [200, 255], dtype=np.uint8)
+    sixteen = _folder(tmp_path / "f16", [4000, 4095], dtype=np.uint16)
+    calls = []
+    real = media.read_image
+    monkeypatch.setattr(media, "read_image", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
+    assert media.frame_depth(sorted(eight.iterdir())) is None and calls == []
+    assert media.frame_depth(sorted(sixteen.iterdir())) == (12, 4095) and len(calls) == 2
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "000001.png").write_bytes(b"\x89PNG\r\n\x1a\n")          # a header cut short: decoded, and refused
+    with pytest.raises(InputError, match="000001.png"):
+        media.frame_depth(sorted(bad.iterdir()))
+
+
+def test_pose_predict_notes_the_depth_of_16_bit_crops(tmp_path, run_cli):
+    """`pose` read 12-bit crops at their depth but, unlike the other commands, did not say so."""
+    import _inputs as inp
+
+    model = inp.pose_model(tmp_path / "model.npz")
+    crops = tmp_path / "crops12"
+    crops.mkdir()
+    for p in sorted((tmp_path / "model-crops").iterdir()):
+        cv2.imwrite(str(crops / p.name), (cv2.imread(str(p)).astype(np.uint16) * 16))   # 0-4080: 12 bits
+    code, out, err = run_cli("pose", "predict", model, crops, "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    assert "note: 16-bit frames with values up to" in err and "read as 12-bit, 4095 scaled to 255" in err
+    code, out, err = run_cli("pose", "predict", model, tmp_path / "model-crops", "--out", tmp_path / "q.csv")
+    assert code == 0 and "16-bit" not in err

@@ -307,6 +307,19 @@ DEPTH_FRAMES = 5
 _EIGHT_BIT = frozenset({".jpg", ".jpeg", ".webp", ".bmp"})
 
 
+def _png_bits(path) -> int | None:
+    """The bit depth a PNG's header (IHDR) states; None for another format or a header cut short
+    (the decoder then says what is wrong), or for what is not a regular file (a pipe would block)."""
+    try:
+        if not os.path.isfile(path):
+            return None
+        with open(path, "rb") as fh:
+            head = fh.read(25)
+    except (OSError, ValueError):       # (ValueError: a NUL byte in the name)
+        return None
+    return head[24] if len(head) == 25 and head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR" else None
+
+
 def frame_depth(paths) -> tuple[int, int] | None:
     """``(bits, largest value)`` of a sequence of 16-bit image files, from :data:`DEPTH_FRAMES` of
     its frames spread evenly from the first to the last: the one of :data:`DEPTHS` whose top bit
@@ -315,8 +328,8 @@ def frame_depth(paths) -> tuple[int, int] | None:
     import cv2
 
     paths = list(paths)
-    if not paths or Path(paths[0]).suffix.lower() in _EIGHT_BIT:
-        return None
+    if not paths or Path(paths[0]).suffix.lower() in _EIGHT_BIT or _png_bits(paths[0]) in range(1, 9):
+        return None     # (an 8-bit PNG's header says so: no frame decoded only to be told)
     top = -1
     for k in sorted(set(np.linspace(0, len(paths) - 1, DEPTH_FRAMES).round().astype(int).tolist())):
         img = read_image(paths[k], cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)

@@ -130,6 +130,7 @@ def train_cmd(
     Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)
     for k, (im, lab, bx) in enumerate(seqs):
         n_k, paths, imgs_k, Y_k = load_labelled(im, lab, progress=True)
+        _depth_note(paths)
         if names and n_k != names:
             raise InputError(f"angles {','.join(n_k)} differ from the first sequence's {','.join(names)}", path=lab)
         names = n_k
@@ -159,6 +160,15 @@ def train_cmd(
                    "are the GP's own and may be far too small", err=True)
 
 
+def _depth_note(paths) -> None:
+    """Say on stderr when 16-bit crops are read as fewer bits (12-bit crops, 0-4095, by their top 8
+    bits were nearly black; :func:`~artmotion.io.media.frame_depth`, as `read_images` reads them)."""
+    from artmotion.io.media import depth_note, frame_depth
+
+    if note := depth_note(frame_depth(paths)):
+        typer.echo(f"note: {note}", err=True)
+
+
 @pose_app.command("predict")
 def predict_cmd(
     model: Path = typer.Argument(..., help="Model file from 'artmotion pose train'."),
@@ -185,6 +195,7 @@ def predict_cmd(
     if views is None and reg.uses_views_:
         raise InputError("this model was trained with --boxes: give the crops' boxes (--boxes)", path=model)
     imgs = read_images(paths, progress=True)
+    _depth_note(paths)
     t = time.perf_counter()
     X = reg.features(imgs)  # once, for the prediction and the domain test below
     mean, std = reg.predict(X, return_std=True, views=views)
@@ -254,6 +265,7 @@ def eval_cmd(
     if out is not None:
         check_out_dir(out, replace=earlier, outputs=outputs)
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
+    _depth_note(paths)
     least = least_examples(folds)
     if len(Y) < least:
         raise InputError(f"{len(Y)} labelled crops: {folds}-fold cross-validation needs at least {least}", path=labels)
@@ -270,6 +282,7 @@ def eval_cmd(
         if u_images is not None:
             assert u_labels is not None  # checked just above: both or neither
             unames, upaths, uimgs, uY = load_labelled(u_images, u_labels, progress=True)
+            _depth_note(upaths)
             if unames != names:
                 raise InputError(f"angle columns {unames} differ from the training labels {names}", path=u_labels)
             unseen[key] = (upaths, uimgs, uY, _views(u_boxes, upaths))

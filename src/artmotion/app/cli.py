@@ -88,8 +88,9 @@ def run_cmd(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: a folder "
                                                             "of images says none (25 is assumed), a video's header may "
                                                             "say it wrong."),
-    bits: Optional[int] = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of what frames "
-                                        "spread over them show (a 12-bit camera's dark first frames show fewer)."),
+    bits: Optional[int] = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of "
+                                                              "what frames spread over them show (a 12-bit camera's "
+                                                              "dark first frames show fewer)."),
 ):
     """Video → tracks → events → sentences → HTML report (and metrics when ground truth is present)."""
     import sys

@@ -148,8 +148,9 @@ def video(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: "
                                                            "a folder of frames says none (25 is assumed), a "
                                                            "video's header may say it wrong."),
-    bits: Optional[int] = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of what frames "
-                                        "spread over them show (a 12-bit camera's dark first frames show fewer)."),
+    bits: Optional[int] = typer.Option(None, "--bits", help="Bits that 16-bit image frames hold (8-16), in place of "
+                                                             "what frames spread over them show (a 12-bit camera's "
+                                                             "dark first frames show fewer)."),
 ):
     """Find the parts that move in a video and name the joint of the one that moves most."""
     import sys
@@ -183,11 +184,11 @@ def video(
         with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       transient=True, console=Console(stderr=True)) as progress:
             task = progress.add_task("tracking", total=None)
-            res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots, fps=fps,
-                                bits=bits, on_frame=lambda done, total: progress.update(task, completed=done, total=total))
+            res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
+                                fps=fps, on_frame=lambda done, total: progress.update(task, completed=done, total=total))
     else:
-        res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots, fps=fps,
-                            bits=bits)
+        res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
+                            fps=fps)
     d = res.to_dict()
     if out is not None:
         _write_video_outputs(out, res, d)

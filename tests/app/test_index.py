@@ -230,3 +230,46 @@ def test_run_refuses_an_index_inside_its_run_folder(tmp_path, run_cli, sample_se
     assert code == 2 and err.strip().endswith("i.sqlite: is inside the run folder --out: keep the index outside it "
                                               "(next to it)"), err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("change", ["UPDATE sentences SET tracks = '[1e400]'", "UPDATE sentences SET tracks = '[1.5]'",
+                                    "UPDATE sentences SET tracks = '{\"a\": 1}'", "UPDATE sentences SET sentence = ''"])
+def test_damaged_sentence_rows_are_a_damaged_index(index, change):
+    """Track ids of 1e400 came out as Infinity (`search --json` printed invalid JSON), an emptied
+    sentence as a blank hit (found by a fuzzing review)."""
+    import contextlib
+    import sqlite3
+
+    with contextlib.closing(sqlite3.connect(index.path)) as conn, conn:
+        conn.execute(change)
+    with EventIndex(index.path, write=False) as damaged, pytest.raises(InputError, match="damaged index"):
+        damaged.search("person 2 exits")
+
+
+@pytest.mark.parametrize("change", ["UPDATE videos SET fps = -1", "UPDATE videos SET fps = 'nan'",
+                                    "UPDATE videos SET frames = 'x'"])
+def test_a_damaged_video_row_is_a_damaged_index(index, change):
+    import contextlib
+    import sqlite3
+
+    with contextlib.closing(sqlite3.connect(index.path)) as conn, conn:
+        conn.execute(change)
+    with EventIndex(index.path, write=False) as damaged, pytest.raises(InputError, match="damaged index"):
+        damaged.videos()
+
+
+@pytest.mark.parametrize("source", [None, ""])
+def test_a_manifest_with_a_null_or_empty_source_is_refused(tmp_path, source):
+    """No run writes it so; the index took the run folder for the source and listed the same
+    video twice (found by a fuzzing review). A manifest without the key (an older one) is read."""
+    d = make_run(tmp_path, "cam", [S("Person 1 enters from the left (frames 1-1).", "enters", "left", [1], 1, 1)])
+    run = json.loads((d / "run.json").read_text())
+    run["source"] = source
+    (d / "run.json").write_text(json.dumps(run))
+    with EventIndex(tmp_path / "db.sqlite") as idx, pytest.raises(InputError, match="'source' is empty"):
+        idx.add_run(d)
+    del run["source"]
+    (d / "run.json").write_text(json.dumps(run))
+    with EventIndex(tmp_path / "db2.sqlite") as idx:
+        idx.add_run(d)
+        assert len(idx.videos()) == 1

@@ -366,3 +366,21 @@ def test_cli_describes_only_the_people_of_mot16_ground_truth(tmp_path, run_cli):
     assert code == 0, err
     assert "20 of 60 rows described" in err
     assert "Person 1" in out and "Person 2" not in out and "Person 3" not in out, out
+
+
+def test_read_pose_refuses_a_repeated_row_and_non_finite_columns(tmp_path):
+    """A row of PRED.csv given twice shifted every later frame by one (the frames fell back to row
+    numbers), and NaN or infinity in a column describe does not read was taken in silence."""
+    rows = [f"frame_{i:04d}.png,{10 * i},1.0,0,0.5\n" for i in range(1, 8)]
+    head = "image,tip_open,tip_open_std,roll,roll_std\n"
+    p = tmp_path / "PRED.csv"
+    p.write_text(head + "".join(rows[:3] + [rows[2]] + rows[3:]))
+    with pytest.raises(InputError, match=r"image 'frame_0003.png' twice \(lines 4 and 5\)"):
+        read_pose(p)
+    for bad in ("inf", "nan", "-1"):          # roll: any finite angle; a std: not negative
+        p.write_text(head + "".join(rows[:2]) + f"frame_0003.png,30,1.0,{bad if bad != '-1' else 0},"
+                     f"{bad if bad == '-1' else 0.5}\n" + "".join(rows[3:]))
+        with pytest.raises(InputError, match="roll"):
+            read_pose(p)
+    p.write_text(head + "".join(rows))
+    assert list(read_pose(p)[0]) == list(range(1, 8))

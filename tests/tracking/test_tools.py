@@ -465,3 +465,23 @@ def test_the_cap_of_heads_comes_from_the_training_frames(tmp_path, run_cli, monk
                              "--out", tmp_path / "p.csv")
     assert code == 0, err
     assert "note: on 3 frame(s) the detector found more heads than the 2 a frame the model reports" in err
+
+
+def test_loading_a_model_with_a_negative_variance(tmp_path):
+    """A negative batch-normalisation variance makes every output NaN: `tool track` said "0 heads"
+    and exited 0 (found by a fuzzing review)."""
+    import torch
+
+    from artmotion.tracking.instruments import net
+
+    det = ToolDetector()
+    det.model_, det.frame_shape_, det.max_heads_ = net.HeadNet(det.width), (288, 384), 4
+    good = tmp_path / "good.pt"
+    det.save(good)
+    state = torch.load(good, weights_only=True)
+    key = next(k for k in state["weights"] if k.endswith("running_var"))
+    state["weights"][key] = state["weights"][key] * 0 - 1
+    bad = tmp_path / "bad.pt"
+    torch.save(state, bad)
+    with pytest.raises(InputError, match="damaged tool model .a negative batch-normalisation variance"):
+        ToolDetector.load(bad)

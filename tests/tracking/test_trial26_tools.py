@@ -167,3 +167,12 @@ def test_a_16_bit_sequence_that_starts_dark_is_not_read_as_fewer_bits(tmp_path):
     assert int(read_frame(twelve[0], 12).max()) == round(3000 * 255 / 4095)
     with pytest.raises(InputError, match="values up to 5000: more than the 12 bits"):
         read_frame(twelve[5], 12)
+
+
+def test_an_angle_beyond_a_million_radians_is_refused(tmp_path):
+    """1e30 rad was wrapped to whatever float rounding left (found by a fuzzing review)."""
+    p = _write(tmp_path / "t.csv", "frame,tool,y,x,scale,angle\n1,0,10,20,30,1e30\n")
+    with pytest.raises(InputError, match="angle must be a number in"):
+        read_tools_csv(p)
+    p = _write(tmp_path / "u.csv", "frame,tool,y,x,scale,angle\n1,0,10,20,30,-314.15\n")
+    assert read_tools_csv(p)[1].shape == (1, 4)

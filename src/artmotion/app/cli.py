@@ -164,7 +164,7 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
         videos = idx.videos()
         shared = idx.shared_names()
     if as_json:
-        typer.echo(json.dumps(videos, indent=1))
+        typer.echo(json.dumps(videos, indent=1, allow_nan=False))
         return
     for v in videos:
         typer.echo(f"{_label(v['name'], v['source'], shared)}: {v['frames']} frames, {v['tracks']} tracks, "
@@ -185,7 +185,7 @@ def search_cmd(
         hits = idx.search(query, video=video, limit=limit)
         shared = idx.shared_names()
     if as_json:         # (no match: [] and exit status 1, as in text)
-        typer.echo(json.dumps([h.as_dict() for h in hits], indent=1))
+        typer.echo(json.dumps([h.as_dict() for h in hits], indent=1, allow_nan=False))
         if not hits:
             raise typer.Exit(1)
         return

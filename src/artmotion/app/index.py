@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import re
 import sqlite3
@@ -307,6 +308,11 @@ class EventIndex:
                 " (SELECT count(*) FROM events e WHERE e.video_id = v.id),"
                 " (SELECT count(*) FROM sentences s WHERE s.video_id = v.id) FROM videos v ORDER BY v.name, v.source_path"
             ).fetchall()
+        for r in rows:
+            if not (r[2] is None or type(r[2]) is int and r[2] >= 0) or not (
+                    r[3] is None or type(r[3]) is float and 0.0 < r[3] < math.inf):
+                raise InputError("damaged index (a video's frame count or frame rate is not a number of the kind it "
+                                 "should be); build a new one with 'artmotion index add'", path=self.path)
         return [dict(zip(("name", "source", "frames", "fps", "tracks", "events", "sentences"), r)) for r in rows]
 
     def shared_names(self) -> set[str]:
@@ -370,6 +376,9 @@ class EventIndex:
         for row in rows:   # SQLite keeps whatever a column was given: a damaged index, not a wrong answer
             if not isinstance(row[3], str) or any(type(f) is not int and f is not None for f in row[8:10]):
                 raise TypeError("a sentence or its frames of the wrong type")
+            ids = json.loads(row[7]) if isinstance(row[7], str) else None
+            if not row[3].strip() or not isinstance(ids, list) or any(type(t) is not int for t in ids):
+                raise TypeError("an empty sentence, or its track ids not a list of whole numbers")
         return rows
 
     def _structured(self, q: Query, video: str | None) -> list[Hit]:

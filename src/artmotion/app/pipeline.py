@@ -451,6 +451,8 @@ def _manifest_problem(run) -> str | None:
     for key in ("source", "fingerprint", "batch", "detections"):
         if key in run and run[key] is not None and not isinstance(run[key], str):
             return f"{key!r} is not a string"
+    if "source" in run and not run["source"]:    # (older manifests have none; no run writes it empty or null)
+        return "'source' is empty"
     digests = run.get("sha256")
     if digests is not None and not (isinstance(digests, dict) and all(
             name in CHECKED_FILES and isinstance(d, str) and len(d) == 64 for name, d in digests.items())):

@@ -104,11 +104,17 @@ def check_ids(arr: np.ndarray, what: str, path: str | os.PathLike | None) -> Non
 def mot_columns(path: str | os.PathLike) -> int:
     """The most values a row of the MOTChallenge file ``path`` holds (0 when it has none): 9 for
     MOT16/17 ground truth (``frame,id,x,y,w,h,consider,class,visibility``), which :func:`read_mot`
-    pads to 10 like every other file."""
-    widths = (len(" ".join(line.strip().removesuffix(",").split(",")).split())
-              for line in read_text(Path(path), "a MOTChallenge file").splitlines()
-              if line.strip() and not line.strip().startswith("#"))
-    return max(widths, default=0)
+    pads to 10 like every other file. Rows of 9 values among rows of another count are an
+    :class:`InputError`: which rules score the file would hang on one line."""
+    widths = [(k, len(" ".join(line.strip().removesuffix(",").split(",")).split()))
+              for k, line in enumerate(read_text(Path(path), "a MOTChallenge file").splitlines(), start=1)
+              if line.strip() and not line.strip().startswith("#")]
+    nine = next((k for k, w in widths if w == 9), None)
+    other = next(((k, w) for k, w in widths if w != 9), None)
+    if nine is not None and other is not None:
+        raise InputError(f"{other[1]} values on this line but 9 on line {nine} (MOT16/17 ground truth has 9 on every "
+                         "line): one file, one layout", path=path, line=other[0])
+    return max((w for _, w in widths), default=0)
 
 
 #: MOT16/17's class of a pedestrian (column 8 of its ground truth), and its classes

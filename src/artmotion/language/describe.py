@@ -423,8 +423,17 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
         raise InputError(f"no column {column!r} (columns: {', '.join(header)})", path=path, line=1)
     ci, ii = header.index(column), header.index("image")
     names, values = [], []
+    seen: dict[str, int] = {}
     for lineno, row in rows:
-        values.append(cell_number(row[ci], column, path, lineno, -MAX_ANGLE, MAX_ANGLE))
+        # every angle and its std is checked, read or not: a damaged row is not half believed
+        for j, h in enumerate(header):
+            if j != ii:
+                v = cell_number(row[j], h, path, lineno, 0.0 if h.endswith("_std") else -MAX_ANGLE, MAX_ANGLE)
+                if j == ci:
+                    values.append(v)
+        if row[ii] in seen:    # (a repeated row shifted every later frame by one)
+            raise InputError(f"image {row[ii]!r} twice (lines {seen[row[ii]]} and {lineno})", path=path, line=lineno)
+        seen[row[ii]] = lineno
         names.append(row[ii])
     if not values:
         raise InputError("empty: no predictions", path=path)

@@ -337,6 +337,10 @@ def check_rules(gt: np.ndarray, rules: str, columns: int | None = None, path: st
         if bad.any():
             raise InputError(f"visibility {gt[bad, 8][0]:g} (frame {int(gt[bad, 0][0])}) is not a share in [0, 1]",
                              path=path)
+        bad = (gt[:, 6] != 0) & (gt[:, 6] != 1)
+        if bad.any():
+            raise InputError(f"consider flag {gt[bad, 6][0]:g} (frame {int(gt[bad, 0][0])}) is neither 0 nor 1",
+                             path=path)
     return rules
 
 

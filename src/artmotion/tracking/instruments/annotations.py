@@ -46,6 +46,8 @@ __all__ = ["TOOLS_COLUMNS", "PREDICTION_COLUMNS", "read_tools_csv", "read_predic
 
 #: the columns of an annotation file (in the order of the shared ``tools.csv``)
 TOOLS_COLUMNS = ("frame", "tool", "y", "x", "scale", "angle")
+#: the largest angle (radians, either sign) a file may give
+MAX_RADIANS = 1e6
 #: the columns of a predictions file, in the order :func:`write_predictions` writes them
 PREDICTION_COLUMNS = ("frame", "track", "x", "y", "scale", "angle", "score")
 
@@ -131,6 +133,8 @@ def _read_rows(path: Path, columns: tuple[str, ...], ident: str, what: str, noth
                              path=path, line=lineno)
         if "score" in values:
             check_range("score", values["score"], 0.0, 1.0, path=path, line=lineno)
+        # (radians, any turn: beyond 1e6 a float no longer says where in the turn it is)
+        check_range("angle", values["angle"], -MAX_RADIANS, MAX_RADIANS, path=path, line=lineno)
         if (frame, key) in first_line:
             raise InputError(f"duplicate {ident} {key} in frame {frame} (first on line {first_line[frame, key]})",
                              path=path, line=lineno)

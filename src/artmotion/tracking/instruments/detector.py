@@ -284,6 +284,9 @@ class ToolDetector:
                              f"frame_shape {det.frame_shape_})", path=p)
         if not all(bool(torch.isfinite(t).all()) for t in model.state_dict().values() if t.is_floating_point()):
             raise InputError("damaged tool model (NaN or infinite weights)", path=p)
+        # a negative variance makes every output NaN: no head on any frame, said as if seen
+        if any(bool((t < 0).any()) for k, t in model.state_dict().items() if k.endswith("running_var")):
+            raise InputError("damaged tool model (a negative batch-normalisation variance)", path=p)
         model.eval()
         det.model_ = model
         return det

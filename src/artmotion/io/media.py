@@ -217,6 +217,10 @@ def exif_orientation(buf: np.ndarray) -> int:
     return 1
 
 
+#: first bytes of a TIFF file (little- and big-endian; classic and BigTIFF)
+_TIFF_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+
+
 def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
     """One walk through a JPEG's segments, a PNG's chunks or a TIFF's pages: what is wrong (``None``:
     sound, or another format) and the ``(width, height)`` its header states (``None``: not found,
@@ -225,7 +229,7 @@ def _image_structure(buf: np.ndarray) -> tuple[str | None, _Size]:
         return _jpeg_structure(buf)
     if bytes(buf[:8]) == _PNG_SIGNATURE:
         return _png_structure(buf.tobytes())
-    if bytes(buf[:4]) in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+    if bytes(buf[:4]) in _TIFF_MAGIC:
         return _tiff_structure(buf.tobytes())
     return None, None
 
@@ -427,12 +431,22 @@ def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]
     codec says while the image decodes is captured (:func:`_stderr_captured`) and read back."""
     import cv2
 
-    with _stderr_captured(_CODEC) as said:
+    # libtiff reports damaged strips ("Using code not yet in table") only through OpenCV's log,
+    # which artmotion silences: for a TIFF, the log speaks while it decodes, into the capture
+    tiff = bytes(buf[:4]) in _TIFF_MAGIC
+    with _stderr_captured(_CODEC + (("[ERROR:",) if tiff else ())) as said:
+        level = cv2.utils.logging.getLogLevel() if tiff else None
         try:
+            if level is not None:
+                cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
             img = cv2.imdecode(buf, flags)
         except cv2.error:                                  # beyond OpenCV's limits (pixels, size)
             img = None
-    return img, next((line.strip() for line in said if line.startswith(_DAMAGE)), None)
+        finally:
+            if level is not None:
+                cv2.utils.logging.setLogLevel(level)
+    return img, next((line.strip() for line in said if line.startswith(_DAMAGE) or (tiff and "TIFF_Error" in line)),
+                     None)
 
 
 #: what OpenCV's own AVI reader prints on a damaged file (with ``fprintf``, past its log level)

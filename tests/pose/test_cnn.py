@@ -58,6 +58,11 @@ def test_box_views_say_where_the_crop_was_in_the_frame(tmp_path):
                  "000002.jpg,1,2,3,4,640,480\n000001.jpg,0,0,10,10,640,480\n")
     with pytest.raises(InputError, match="boxes.csv:4: a second box for image"):
         read_views(f, paths)
+    f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n000002.jpg,0,0,9000,9000,640,480\n")
+    with pytest.raises(InputError, match="boxes.csv:3: the box .* is more than twice as large as its 640x480 frame"):
+        read_views(f, paths)     # (found by a fuzzing review: taken as it was)
+    f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n000002.jpg,600,0,100,500,640,480\n")
+    assert read_views(f, paths).shape[0] == 2        # over the frame's edge: a tool at the border
     f.write_text("image,x,y,w,h,frame_w,frame_h\n000001.jpg,270,190,100,100,640,480\n000002.jpg,9999,2,3,4,640,480\n")
     with pytest.raises(InputError, match="boxes.csv:3: the box .* lies outside its 640x480 frame"):
         read_views(f, paths)

@@ -7,11 +7,10 @@ import shutil
 import cv2
 import numpy as np
 import pytest
+from _synth import H, W, moving_blob, write_mot_folder
 
 from artmotion.errors import InputError
 from artmotion.tracking import open_sequence
-
-from _synth import H, W, moving_blob, write_mot_folder
 
 
 @pytest.fixture
@@ -437,3 +436,13 @@ def test_every_reader_of_a_12_bit_sequence_sees_its_depth(tmp_path, run_cli):
     for k in (1, 2):
         cv2.imwrite(str(eight / f"{k:06d}.png"), np.full((48, 64, 3), 200, np.uint8))
     assert open_sequence(eight).depth is None
+
+
+def test_a_mot_folder_without_seqinfo_reads_its_img1(mot_folder):
+    """2DMOT2015's first release has no seqinfo.ini: the folder was 'no images in folder' though its
+    frames were in img1/ (found by a fuzzing review). Its frames, detections and ground truth are
+    read; the frame rate is assumed, and said to be."""
+    (mot_folder / "seqinfo.ini").unlink()
+    seq = open_sequence(mot_folder)
+    assert seq.length == 6 and seq.name == "seq" and seq.det_path is not None and not seq.fps_known
+    assert sum(1 for _ in seq.frames()) == 6

@@ -510,6 +510,9 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
         videos = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
         if len(videos) == 1 and not any(p.suffix.lower() in IMAGE_EXTS for p in path.iterdir()):
             return _open_video(videos[0], name=path.name, folder=path)
+        if (path / "img1").is_dir() and not any(p.suffix.lower() in IMAGE_EXTS for p in path.iterdir()):
+            # a MOTChallenge folder without seqinfo.ini (2DMOT2015's first release): its frames, det/ and gt/
+            return _open_image_folder(path / "img1")
         return _open_image_folder(path)
     if path.suffix.lower() in IMAGE_EXTS:
         raise InputError("a single image is not a sequence; give its folder", path=path)

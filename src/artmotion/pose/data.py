@@ -178,6 +178,9 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
         if x >= fw or y >= fh or x + w <= 0 or y + h <= 0:  # a crop is cut from inside its frame
             raise InputError(f"the box ({x:g}, {y:g}, {w:g}, {h:g}) lies outside its {fw:g}x{fh:g} frame",
                              path=path, line=lineno)
+        if w > 2 * fw or h > 2 * fh:      # (one may run over the frame's edge, not be many frames wide)
+            raise InputError(f"the box ({x:g}, {y:g}, {w:g}, {h:g}) is more than twice as large as its {fw:g}x{fh:g} "
+                             "frame", path=path, line=lineno)
         boxes[stem], sizes[stem] = (x, y, w, h), (fw, fh)
     missing = [p.name for p in images if p.stem not in boxes]
     if missing:

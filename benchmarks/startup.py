@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+from _docs import compile_package
+
 ROOT = Path(__file__).resolve().parents[1]
 CLI = Path(sys.executable).with_name("artmotion")
 COMMANDS = [["--help"], ["track", "--help"], ["run", "--help"], ["pose", "--help"], ["articulation", "--help"]]
@@ -33,6 +35,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=11)
     ap.add_argument("--out", default=str(ROOT / "docs" / "startup.md"))
     args = ap.parse_args(argv)
+    compile_package()
     rows = [(" ".join(c), seconds(c, args.repeat)) for c in COMMANDS]
     table = "\n".join(["| command | median seconds |", "|---|---:|"] +
                       [f"| `artmotion {c}` | {s:.3f} |" for c, s in rows])

@@ -127,7 +127,11 @@ def track_scores(name: str, dets: dict, experts=("det", "motion"), every: int = 
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config or TrackerConfig())
     n = run_tracker(tracker, iter(frames), dets, reduce=red, decode=red, detect_every=every)
     rows, _ = tracker.finish(n)
-    s = evaluate(gt_path, rows)
+    return _scores(evaluate(gt_path, rows))
+
+
+def _scores(s: dict) -> dict:
+    """The scores of :func:`~artmotion.tracking.metrics.evaluate`'s answer that the tables show."""
     return {**{k: float(s[k]) for k in KEYS}, **{k: int(s[k]) for k in COUNTS}}
 
 
@@ -175,11 +179,12 @@ def every_k(side: int, names, cache: Path, log=print) -> dict:
     return out
 
 
-def peers_on_builtin(names, cache: Path, side: int, log=print) -> str:
+def peers_on_builtin(names, cache: Path, side: int, every_frame: dict, log=print) -> str:
     """The peers on SSDLite's boxes (every frame, the ``side`` input), each peer's score settings
     chosen by leave-one-sequence-out over :data:`PEER_GRID` x :data:`PEER_DROP`, against artmotion's
-    default (the detector on every second frame; every frame too, for reference): a markdown table
-    of the held-out scores."""
+    default (the detector on every second frame; ``every_frame``: its scores with the detector on
+    every frame, per sequence, for reference, as :func:`run` measured them): a markdown table of
+    the held-out scores."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tracking import LABELS, PEERS, run_peer, score_table
@@ -202,7 +207,7 @@ def peers_on_builtin(names, cache: Path, side: int, log=print) -> str:
             if "error" in run:
                 raise RuntimeError(f"{m} on {name}: {run['error']}")
             s = evaluate(SEQUENCES[name] / "gt" / "gt.txt", read_mot(out) if out.stat().st_size else np.zeros((0, 7)))
-            return m, name, (drop, PEER_GRID[m][k]), {**{q: float(s[q]) for q in KEYS}, **{q: int(s[q]) for q in COUNTS}}
+            return m, name, (drop, PEER_GRID[m][k]), _scores(s)
 
         with ThreadPoolExecutor(2) as pool:   # each job a process of its own
             for m, name, point, s in pool.map(go, jobs):
@@ -220,7 +225,7 @@ def peers_on_builtin(names, cache: Path, side: int, log=print) -> str:
     for n in names:
         held[("artmotion", n)] = track_scores(n, dets[n], every=DETECT_EVERY)
     table, verdict = score_table(held, names, ["artmotion", *PEERS])
-    every1 = {k: float(np.mean([track_scores(n, dets[n])[k] for n in names])) for k in KEYS}
+    every1 = {k: float(np.mean([every_frame[n][k] for n in names])) for k in KEYS}
     lines = ["| peer | chosen per held-out sequence (boxes dropped under; settings) |", "|---|---|"]
     for m in PEERS:
         lines.append(f"| {LABELS[m]} | " + "; ".join(
@@ -298,7 +303,8 @@ def main(argv=None) -> int:
     if args.out != "-":
         replace_block(Path(args.out), "detector-benchmark", text)
     if not args.no_peers:
-        text = peers_on_builtin(names, cache, sides["all"], log)
+        text = peers_on_builtin(names, cache, sides["all"], {n: res["seq"][n][f"ssdlite-{sides['all']}"] for n in names},
+                                log)
         print(text)
         if args.out != "-":
             replace_block(Path(args.out), "detector-peers", text)

@@ -170,12 +170,10 @@ def video(
     check_apart(out, (source,))
     if out is not None:
         _check_video_out(out)     # before the tracking (a read-only folder failed after it)
-    opened = None
-    if bits is not None:          # (the sequence opened here, so that an error names the option)
-        from artmotion.io.sequence import open_sequence
+    from artmotion.io.sequence import open_sequence
 
-        opened = open_sequence(source)
-        opened.set_bits(bits)
+    seq = open_sequence(source)   # (opened here, so that an error names the option; analyze_video takes it as it is)
+    seq.set_bits(bits)
     snapshots = 4 if out is not None else 0
     if sys.stderr.isatty():
         from rich.console import Console
@@ -184,10 +182,10 @@ def video(
         with Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       transient=True, console=Console(stderr=True)) as progress:
             task = progress.add_task("tracking", total=None)
-            res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
+            res = analyze_video(seq, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
                                 fps=fps, on_frame=lambda done, total: progress.update(task, completed=done, total=total))
     else:
-        res = analyze_video(opened or source, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
+        res = analyze_video(seq, focal=focal, max_parts=max_parts, seed=seed, snapshots=snapshots,
                             fps=fps)
     d = res.to_dict()
     if out is not None:

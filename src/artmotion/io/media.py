@@ -434,10 +434,10 @@ def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]
     # libtiff reports damaged strips ("Using code not yet in table") only through OpenCV's log,
     # which artmotion silences: for a TIFF, the log speaks while it decodes, into the capture
     tiff = bytes(buf[:4]) in _TIFF_MAGIC
+    level = cv2.utils.logging.getLogLevel() if tiff else None     # (no log calls for every other frame)
     with _stderr_captured(_CODEC + (("[ERROR:",) if tiff else ())) as said:
-        level = cv2.utils.logging.getLogLevel() if tiff else None
         try:
-            if level is not None:
+            if tiff:
                 cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
             img = cv2.imdecode(buf, flags)
         except cv2.error:                                  # beyond OpenCV's limits (pixels, size)
@@ -445,8 +445,8 @@ def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]
         finally:
             if level is not None:
                 cv2.utils.logging.setLogLevel(level)
-    return img, next((line.strip() for line in said if line.startswith(_DAMAGE) or (tiff and "TIFF_Error" in line)),
-                     None)
+    damage = (line.strip() for line in said if line.startswith(_DAMAGE) or (tiff and "TIFF_Error" in line))
+    return img, next(damage, None)
 
 
 #: what OpenCV's own AVI reader prints on a damaged file (with ``fprintf``, past its log level)

@@ -426,11 +426,9 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     seen: dict[str, int] = {}
     for lineno, row in rows:
         # every angle and its std is checked, read or not: a damaged row is not half believed
-        for j, h in enumerate(header):
-            if j != ii:
-                v = cell_number(row[j], h, path, lineno, 0.0 if h.endswith("_std") else -MAX_ANGLE, MAX_ANGLE)
-                if j == ci:
-                    values.append(v)
+        cells = [None if j == ii else cell_number(row[j], h, path, lineno, 0.0 if h.endswith("_std") else -MAX_ANGLE,
+                                                  MAX_ANGLE) for j, h in enumerate(header)]
+        values.append(cells[ci])
         if row[ii] in seen:    # (a repeated row shifted every later frame by one)
             raise InputError(f"image {row[ii]!r} twice (lines {seen[row[ii]]} and {lineno})", path=path, line=lineno)
         seen[row[ii]] = lineno

@@ -12,14 +12,14 @@ from collections.abc import Iterator
 
 
 def quiet_native_logs() -> None:
-    """Silence FFmpeg's and OpenCV's messages on stderr (``[mjpeg @ 0x...] overread 8``,
-    ``[ WARN:0] ... Failed to write frame``): the readers of :mod:`artmotion.io.media` report damage
-    as one :class:`~artmotion.errors.InputError` naming the file, and writers are checked. FFmpeg
-    reads its level when OpenCV first opens a video, so call this before. ``ARTMOTION_DEBUG=1``
-    keeps them."""
+    """Silence OpenCV's messages on stderr (``[ WARN:0] ... Failed to write frame``): the readers of
+    :mod:`artmotion.io.media` report damage as one :class:`~artmotion.errors.InputError` naming the
+    file, and writers are checked. FFmpeg's are not silenced (OpenCV then leaves FFmpeg's log at
+    its errors, on stderr): :mod:`artmotion.io.media` captures them around every call into FFmpeg,
+    because they are the only report of damage FFmpeg decoded around (``[mpeg4 @ 0x...] illegal dc
+    vlc``), and keeps them off stderr. ``ARTMOTION_DEBUG=1`` keeps them all."""
     if os.environ.get("ARTMOTION_DEBUG"):
         return
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")      # AV_LOG_QUIET
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")
     cv2 = sys.modules.get("cv2")
     if cv2 is not None and hasattr(cv2, "utils"):

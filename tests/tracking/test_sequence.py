@@ -237,7 +237,8 @@ def test_truncated_video_is_an_error(tmp_path, cut):
 
 
 def test_a_video_that_ends_early_is_an_error(tmp_path):
-    """Frames that do not decode at the end of a video whose header counts 40."""
+    """Frames that do not decode at the end of a video whose header counts 40 (FFmpeg reports the
+    first of them as it fails to decode it; were it silent, the count would say it)."""
     frames, _ = moving_blob(n=40)
     video = _video(tmp_path / "clip.avi", frames)
     data = bytearray(video.read_bytes())
@@ -245,7 +246,7 @@ def test_a_video_that_ends_early_is_an_error(tmp_path):
     video.write_bytes(bytes(data))
     seq = open_sequence(video)
     assert seq.length == 40                          # the header still says 40
-    with pytest.raises(InputError, match=r"clip\.avi: video ends after \d+ of its 40 frames"):
+    with pytest.raises(InputError, match=r"clip\.avi: (frame \d+ is damaged|video ends after \d+ of its 40 frames)"):
         list(seq.frames())
 
 

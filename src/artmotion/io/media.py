@@ -17,14 +17,16 @@ here:
 * :func:`check_video` recognises a video container by its first bytes (MP4/MOV, AVI, Matroska/
   WebM, MPEG, FLV, ASF/WMV, Ogg) and refuses images and anything else, and an AVI shorter than
   its header declares (OpenCV plays a cut AVI's remaining frames and says nothing).
-  :func:`open_capture` opens it with the AVI reader's own messages kept off stderr.
+  :func:`open_capture` opens it with the AVI reader's own messages kept off stderr, and
+  :func:`read_video_frame` reads a frame and refuses it when FFmpeg reported damage it decoded
+  around (its log, on stderr, captured while the frame decodes).
 
 * :func:`write_image` encodes an image in memory and writes it atomically (a full disk is an
   error naming the file, not a codec's message); :func:`check_written_video` reads back a video
   just written and refuses it unless every frame is there (OpenCV's writer reports no errors).
-* FFmpeg's and OpenCV's own messages are kept off stderr by the command line
-  (:func:`artmotion._native.quiet_native_logs`): a damaged file is reported once, as an error
-  naming it.
+* OpenCV's own messages are kept off stderr by the command line
+  (:func:`artmotion._native.quiet_native_logs`), FFmpeg's by the capture around every call into
+  it: a damaged file is reported once, as an error naming it.
 
 File types are named here once (:data:`IMAGE_EXTS`, :data:`VIDEO_EXTS`) for every reader.
 """
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -47,7 +50,8 @@ from artmotion.errors import InputError
 from artmotion.io.files import check_riff_size, read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
-           "depth_note", "frame_depth", "image_problem", "read_frame", "read_image", "write_image"]
+           "depth_note", "ffmpeg_quiet", "frame_depth", "image_problem", "open_capture", "read_frame", "read_image",
+           "read_video_frame", "write_image"]
 
 IMAGE_EXTS = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm"})
 VIDEO_EXTS = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".webm", ".wmv", ".flv", ".ts",
@@ -382,6 +386,8 @@ _DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS param
            "Huffman table", "Bogus", "libpng error")
 #: their other messages (e.g. "libpng warning: iCCP: known incorrect sRGB profile"): not shown
 _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
+#: a line of FFmpeg's own log (its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr)
+_FFMPEG_LINE = re.compile(r"\[([^\]@]+?) @ (?:0x)?[0-9a-fA-F]+\] (.*)")
 #: held while a decode points the file descriptor 2 at its scratch file: hold it to write to the
 #: real stderr (the command line's one-line error, which a decoding thread would otherwise swallow)
 stderr_lock = threading.Lock()
@@ -418,7 +424,9 @@ def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
                 scratch.seek(0)
                 said += scratch.read().decode("utf-8", "replace").splitlines()
     finally:
-        other = [line for line in said if line.strip() and not line.startswith(native)]
+        quiet = not os.environ.get("ARTMOTION_DEBUG")
+        other = [line for line in said if line.strip() and not line.startswith(native)
+                 and not (quiet and _FFMPEG_LINE.match(line))]
         if other:
             os.write(2, ("\n".join(other) + "\n").encode())
 
@@ -457,13 +465,38 @@ def open_capture(path: str | os.PathLike):
     """``cv2.VideoCapture(path)``, its container parser's messages kept off stderr (a damaged AVI
     prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error),
     reading the frames as stored (a rotation in the container's metadata is not applied:
-    ``CAP_PROP_ORIENTATION_META`` says what it asks for)."""
+    ``CAP_PROP_ORIENTATION_META`` says what it asks for). FFmpeg decodes on one thread, so that
+    what it reports while a frame decodes belongs to that frame (:func:`read_video_frame`; with
+    frame threads it reports a frame's damage during a later read, or after the last)."""
     import cv2
 
     with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER):
-        cap = cv2.VideoCapture(os.fspath(path))
+        cap = cv2.VideoCapture(os.fspath(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
+        if not cap.isOpened():                   # (a file FFmpeg cannot read: OpenCV's own readers)
+            cap = cv2.VideoCapture(os.fspath(path))
     cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0)      # the frames as stored, as images (read_image)
     return cap
+
+
+def ffmpeg_quiet():
+    """A block whose FFmpeg messages (a video writer's) are kept off stderr; a writer's failure is
+    found by :func:`check_written_video`, not by reading them."""
+    return _stderr_captured(())
+
+
+def read_video_frame(cap, path: str | os.PathLike, number: int) -> np.ndarray | None:
+    """The next frame of ``cap`` (:func:`open_capture`), ``None`` at its end. FFmpeg conceals
+    damaged data (a frame's broken macroblocks filled from their neighbours; a cut last frame
+    partly decoded) and reports it only in its log (``[mpeg4 @ 0x..] illegal dc vlc``), which is
+    captured while the frame decodes: damage is an :class:`InputError` naming ``path`` and frame
+    ``number`` (counted from 1), not a frame with wrong pixels."""
+    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
+        ok, img = cap.read()
+    damage = next((m for m in map(_FFMPEG_LINE.match, said) if m), None)
+    if damage is not None:
+        raise InputError(f"frame {number} is damaged: FFmpeg decoded around broken data "
+                         f"({damage.group(1)}: {damage.group(2).strip()})", path=path)
+    return img if ok else None
 
 
 #: first bytes of video containers: (offset, bytes)

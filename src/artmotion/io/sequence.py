@@ -33,6 +33,7 @@ from artmotion.io.media import (
     open_capture,
     read_frame,
     read_image,
+    read_video_frame,
 )
 from artmotion.io.mot import MAX_FRAME
 
@@ -175,8 +176,9 @@ class Sequence:
             raise InputError("cannot open video", path=self.video)
         try:
             n = 0
-            ok, img = cap.read()
-            while ok and img is not None:
+            got = read_video_frame(cap, self.video, 1)
+            while got is not None:
+                img = got
                 n += 1
                 if img.ndim == 2:
                     img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
@@ -186,8 +188,8 @@ class Sequence:
                 if reduce > 1:
                     img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield n, img
-                ok, img = cap.read()
-                if n == self.length and self.length_exact and ok and img is not None:
+                got = read_video_frame(cap, self.video, n + 1)
+                if n == self.length and self.length_exact and got is not None:
                     if self.length_from is not None:
                         assert self.video is not None  # the capture was opened from it
                         raise InputError(f"seqinfo.ini says {self.length} frames but {self.video.name} has more",
@@ -268,8 +270,8 @@ def _probe_video(video: Path) -> tuple[float | None, int, int, int, str]:
     try:
         if not cap.isOpened():
             raise InputError("cannot open video (broken or unsupported)", path=video)
-        ok, img = cap.read()
-        if not ok or img is None:
+        img = read_video_frame(cap, video, 1)
+        if img is None:
             raise InputError("video has no decodable frames", path=video)
         fps = cap.get(cv2.CAP_PROP_FPS)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)

@@ -11,7 +11,7 @@ import numpy as np
 from artmotion.errors import InputError
 from artmotion.geometry import box_center
 from artmotion.io import atomic_path
-from artmotion.io.media import check_written_video
+from artmotion.io.media import check_written_video, ffmpeg_quiet
 
 __all__ = ["colour_of", "draw_boxes", "write_annotated"]
 
@@ -51,7 +51,8 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
     with atomic_path(path, suffix=".mp4") as tmp:
         # the stubs lack OpenCV's module-level alias of VideoWriter.fourcc
         fourcc = cv2.VideoWriter_fourcc(*"mp4v")  # type: ignore[attr-defined]
-        writer = cv2.VideoWriter(str(tmp), fourcc, float(fps or 25.0), (w, h))
+        with ffmpeg_quiet():
+            writer = cv2.VideoWriter(str(tmp), fourcc, float(fps or 25.0), (w, h))
         if not writer.isOpened():
             raise InputError("cannot open a video writer (mp4v)", path=path)
         written = 0
@@ -72,8 +73,10 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
                     cv2.putText(img, s, (8, 20 + 18 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 2,
                                 cv2.LINE_AA)
                 cv2.putText(img, f"#{n}", (8, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-                writer.write(img)
+                with ffmpeg_quiet():
+                    writer.write(img)
                 written += 1
         finally:
-            writer.release()
+            with ffmpeg_quiet():
+                writer.release()
         check_written_video(tmp, written, where=path)    # a full disk drops frames without a word

@@ -1,0 +1,96 @@
+"""Damage that FFmpeg decodes around. A video whose frame data is broken in the middle still
+decodes: FFmpeg conceals the broken macroblocks (fills them from their neighbours) and says so only
+in its log, so the frame came out partly wrong and the run succeeded. A cut MPEG program stream
+(no frame count to compare with) ended on a partly decoded frame. Both are now errors naming the
+file and the frame; a clean video gives none, and FFmpeg's lines never reach stderr."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from _inputs import assert_one_line_error
+
+from artmotion.errors import InputError
+from artmotion.io.sequence import open_sequence
+
+W, H, N = 320, 240, 60
+
+
+def _write(path, fourcc: str):
+    """A textured scene panning under a red disc, ``N`` frames."""
+    bg = np.random.default_rng(0).integers(0, 256, (H, W, 3), dtype=np.uint8)
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 25.0, (W, H))
+    for f in range(N):
+        img = np.roll(bg, 2 * f, axis=1)
+        cv2.circle(img, (40 + 3 * f, H // 2), 20, (0, 0, 255), -1)
+        out.write(img)
+    out.release()
+    assert path.stat().st_size > 0
+    return path
+
+
+def _broken(path, out):
+    """``path`` with 200 bytes in its middle inverted (the container's structure is elsewhere)."""
+    data = bytearray(path.read_bytes())
+    mid = len(data) // 2
+    for k in range(200):
+        data[mid + 7 * k] ^= 0xFF
+    out.write_bytes(bytes(data))
+    return out
+
+
+def _frames(path):
+    cap = cv2.VideoCapture(str(path))
+    got = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            return got
+        got.append(img)
+
+
+def test_a_frame_ffmpeg_conceals_is_an_error_at_that_frame(tmp_path):
+    clean = _write(tmp_path / "clean.mp4", "mp4v")
+    bad = _broken(clean, tmp_path / "bad.mp4")
+    a, b = _frames(clean), _frames(bad)
+    assert len(a) == len(b) == N                      # OpenCV alone: every frame, no word of the damage
+    wrong = [k for k in range(N) if np.abs(a[k].astype(int) - b[k]).mean() > 1]
+    assert wrong                                      # ... though some of them are wrong
+    assert [n for n, _ in open_sequence(clean).frames()] == list(range(1, N + 1))
+    with pytest.raises(InputError, match=rf"bad\.mp4: frame {wrong[0] + 1} is damaged: FFmpeg decoded around "
+                                         r"broken data \(mpeg4: "):
+        list(open_sequence(bad).frames())
+
+
+def test_a_cut_mpeg_stream_ends_on_an_error_not_a_partial_frame(tmp_path):
+    """An MPEG program stream states no frame count: cut, its last frame decoded in part."""
+    clean = _write(tmp_path / "clean.mpg", "PIM1")
+    assert [n for n, _ in open_sequence(clean).frames()] == list(range(1, N + 1))
+    cut = tmp_path / "cut.mpg"
+    data = clean.read_bytes()
+    cut.write_bytes(data[: int(len(data) * 0.77)])
+    with pytest.raises(InputError, match=r"cut\.mpg: frame \d+ is damaged: FFmpeg decoded around broken data"):
+        list(open_sequence(cut).frames())
+
+
+def _cli(*args, env=None):
+    return subprocess.run([sys.executable, "-m", "artmotion", *map(str, args)], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, timeout=300)
+
+
+def test_the_command_line_says_one_line_and_ffmpeg_stays_off_stderr(tmp_path):
+    clean = _write(tmp_path / "clean.avi", "XVID")
+    bad = _broken(clean, tmp_path / "bad.avi")
+    res = _cli("articulation", "video", bad, "--json")
+    assert_one_line_error(res.returncode, res.stderr, "bad.avi", "is damaged: FFmpeg decoded around broken data")
+    assert res.stdout == ""
+    res = _cli("articulation", "video", clean, "--json")
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    # ARTMOTION_DEBUG shows FFmpeg's own lines (and the traceback)
+    res = _cli("articulation", "video", bad, "--json", env={"ARTMOTION_DEBUG": "1"})
+    assert res.returncode != 0 and "[mpeg4 @ " in res.stderr, res.stderr

@@ -78,6 +78,37 @@ def test_a_cut_mpeg_stream_ends_on_an_error_not_a_partial_frame(tmp_path):
         list(open_sequence(cut).frames())
 
 
+def test_damage_ffmpeg_reports_while_opening_is_an_error(tmp_path):
+    """Opening reads into the file: a cut FLV's damage is reported then, and then never again."""
+    clean = _write(tmp_path / "clean.flv", "FLV1")
+    assert [n for n, _ in open_sequence(clean).frames()] == list(range(1, N + 1))
+    cut = tmp_path / "cut.flv"
+    data = clean.read_bytes()
+    cut.write_bytes(data[: int(len(data) * 0.99)])
+    with pytest.raises(InputError, match=r"cut\.flv: damaged: FFmpeg found broken data while opening it \(flv: "):
+        open_sequence(cut)
+
+
+@pytest.mark.parametrize("said, mine, first", [
+    (["[mpeg4 @ 0x55d0c0a8] illegal dc vlc", "[mpeg4 @ 0x55d0c0a8] Error at MB: 171"], {0, 1}, "mpeg4: illegal dc vlc"),
+    # in colour (AV_LOG_FORCE_COLOR), the colour's end on a line of its own
+    (["\x1b[0;36m[mpeg4 @ 0x7f0d200363c0] \x1b[0m\x1b[1;31mac-tex damaged at 19 9", "\x1b[0m"], {0},
+     "mpeg4: ac-tex damaged at 19 9"),
+    # logged without a context: no prefix
+    (["Truncating packet of size 5854 to 2620"], {0}, "Truncating packet of size 5854 to 2620"),
+    # a prefix whose text a decoder put on the next line
+    (["[wmv1 @ 0x55d0c0a8] ", "error while decoding block: 19 x 0 (5)"], {0, 1},
+     "wmv1: error while decoding block: 19 x 0 (5)"),
+    # another thread's line is not FFmpeg's
+    (["track:  40%|####      | 28/71", "[h264 @ 0x1] no frame!"], {1}, "h264: no frame!"),
+    ([], set(), None),
+])
+def test_which_lines_are_ffmpegs(said, mine, first):
+    from artmotion.io.media import _ffmpeg_said
+
+    assert _ffmpeg_said(said) == (mine, first)
+
+
 def _cli(*args, env=None):
     return subprocess.run([sys.executable, "-m", "artmotion", *map(str, args)], capture_output=True, text=True,
                           env={**os.environ, **(env or {})}, timeout=300)
@@ -91,6 +122,9 @@ def test_the_command_line_says_one_line_and_ffmpeg_stays_off_stderr(tmp_path):
     assert res.stdout == ""
     res = _cli("articulation", "video", clean, "--json")
     assert res.returncode == 0 and res.stderr == "", res.stderr
+    # FFmpeg in colour (its codes round every line, and end them on a line of their own)
+    res = _cli("articulation", "video", bad, "--json", env={"AV_LOG_FORCE_COLOR": "1"})
+    assert_one_line_error(res.returncode, res.stderr, "bad.avi", "is damaged: FFmpeg decoded around broken data")
     # ARTMOTION_DEBUG shows FFmpeg's own lines (and the traceback)
     res = _cli("articulation", "video", bad, "--json", env={"ARTMOTION_DEBUG": "1"})
     assert res.returncode != 0 and "[mpeg4 @ " in res.stderr, res.stderr

@@ -386,8 +386,40 @@ _DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS param
            "Huffman table", "Bogus", "libpng error")
 #: their other messages (e.g. "libpng warning: iCCP: known incorrect sRGB profile"): not shown
 _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
-#: a line of FFmpeg's own log (its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr)
-_FFMPEG_LINE = re.compile(r"\[([^\]@]+?) @ (?:0x)?[0-9a-fA-F]+\] (.*)")
+#: a line of FFmpeg's own log (its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr,
+#: in colour when ``AV_LOG_FORCE_COLOR`` is set)
+_FFMPEG_LINE = re.compile(r"\[([^\]@]+?) @ (?:0x)?[0-9a-fA-F]+\] ?(.*)")
+_COLOUR = re.compile(r"\x1b\[[0-9;]*m")
+#: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
+_FFMPEG_BARE = ("Truncating packet of size", "error while decoding")
+
+
+def _ffmpeg_said(said: list[str]) -> tuple[set[int], str | None]:
+    """Which of the captured lines ``said`` are FFmpeg's (their indices), and the first thing it
+    said (``"codec: message"``; None when it said nothing). Its lines start with ``[codec @ 0x..]``,
+    except a few logged without a context (:data:`_FFMPEG_BARE`) and the text of a prefix that a
+    decoder ended with a line break (msmpeg4's ``[wmv1 @ 0x..]`` then ``error while decoding
+    block: 19 x 0``)."""
+    mine: set[int] = set()
+    first = None
+    codec = None          # the codec of a prefix whose text is on the next line
+    for i, raw in enumerate(said):
+        line = _COLOUR.sub("", raw).strip()
+        m = _FFMPEG_LINE.match(line)
+        if m:
+            mine.add(i)
+            text = m.group(2).strip()
+            if text and first is None:
+                first = f"{m.group(1)}: {text}"
+            codec = None if text else m.group(1)
+            continue
+        if line and (codec is not None or line.startswith(_FFMPEG_BARE)):
+            mine.add(i)
+            if first is None:
+                first = line if codec is None else f"{codec}: {line}"
+        codec = None
+    return mine, first
+
 #: held while a decode points the file descriptor 2 at its scratch file: hold it to write to the
 #: real stderr (the command line's one-line error, which a decoding thread would otherwise swallow)
 stderr_lock = threading.Lock()
@@ -424,9 +456,9 @@ def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
                 scratch.seek(0)
                 said += scratch.read().decode("utf-8", "replace").splitlines()
     finally:
-        quiet = not os.environ.get("ARTMOTION_DEBUG")
-        other = [line for line in said if line.strip() and not line.startswith(native)
-                 and not (quiet and _FFMPEG_LINE.match(line))]
+        ffmpeg = _ffmpeg_said(said)[0] if not os.environ.get("ARTMOTION_DEBUG") else set()
+        other = [line for i, line in enumerate(said) if _COLOUR.sub("", line).strip() and not line.startswith(native)
+                 and i not in ffmpeg]
         if other:
             os.write(2, ("\n".join(other) + "\n").encode())
 
@@ -467,13 +499,20 @@ def open_capture(path: str | os.PathLike):
     reading the frames as stored (a rotation in the container's metadata is not applied:
     ``CAP_PROP_ORIENTATION_META`` says what it asks for). FFmpeg decodes on one thread, so that
     what it reports while a frame decodes belongs to that frame (:func:`read_video_frame`; with
-    frame threads it reports a frame's damage during a later read, or after the last)."""
+    frame threads it reports a frame's damage during a later read, or after the last). Opening
+    reads into the file: damage FFmpeg reports meanwhile (``[flv @ 0x..] Packet mismatch``) is an
+    :class:`InputError` naming ``path``."""
     import cv2
 
-    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER):
+    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
         cap = cv2.VideoCapture(os.fspath(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
-        if not cap.isOpened():                   # (a file FFmpeg cannot read: OpenCV's own readers)
+        ffmpeg = cap.isOpened()
+        if not ffmpeg:                           # (a file FFmpeg cannot read: OpenCV's own readers)
             cap = cv2.VideoCapture(os.fspath(path))
+    damage = _ffmpeg_said(said)[1] if ffmpeg else None
+    if damage is not None:
+        cap.release()
+        raise InputError(f"damaged: FFmpeg found broken data while opening it ({damage})", path=path)
     cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0)      # the frames as stored, as images (read_image)
     return cap
 
@@ -492,10 +531,10 @@ def read_video_frame(cap, path: str | os.PathLike, number: int) -> np.ndarray | 
     ``number`` (counted from 1), not a frame with wrong pixels."""
     with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
         ok, img = cap.read()
-    damage = next((m for m in map(_FFMPEG_LINE.match, said) if m), None)
+    damage = _ffmpeg_said(said)[1]
     if damage is not None:
-        raise InputError(f"frame {number} is damaged: FFmpeg decoded around broken data "
-                         f"({damage.group(1)}: {damage.group(2).strip()})", path=path)
+        where = f"frame {number} is damaged" if ok else f"damaged after frame {number - 1}, its last"
+        raise InputError(f"{where}: FFmpeg decoded around broken data ({damage})", path=path)
     return img if ok else None
 
 
@@ -549,11 +588,15 @@ def check_written_video(path: str | os.PathLike, frames: int, where: str | os.Pa
     writer drops frames silently when the disk is full. ``where`` names it in the message."""
     import cv2
 
-    cap = open_capture(path)
     try:
-        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
-    finally:
-        cap.release()
+        cap = open_capture(path)
+    except InputError:
+        count = -1
+    else:
+        try:
+            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+        finally:
+            cap.release()
     if count != frames:
         got = "cannot be read back" if count < 0 else f"holds {count} of its {frames} frames"
         raise InputError(f"the video written {got} (disk full?)", path=where or path)

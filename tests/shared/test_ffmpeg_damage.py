@@ -109,6 +109,20 @@ def test_which_lines_are_ffmpegs(said, mine, first):
     assert _ffmpeg_said(said) == (mine, first)
 
 
+@pytest.mark.parametrize("said, damage", [
+    (["[flv @ 0x55d0c0a8] Packet mismatch 0 113 34094"], "flv: Packet mismatch 0 113 34094"),
+    # an audio stream's damage (no audio is read), and a header's timing FFmpeg replaces by a default
+    (["[aac @ 0x1] channel element 1.0 is not allocated", "[mp3float @ 0x2] Header missing"], None),
+    (["[mov,mp4,m4a,3gp,3g2,mj2 @ 0x3] Invalid mdhd time scale 0, defaulting to 1"], None),
+    (["[aac @ 0x1] Input buffer exhausted", "[mov,mp4,m4a,3gp,3g2,mj2 @ 0x3] stream 0, offset 0x30: partial file"],
+     "mov,mp4,m4a,3gp,3g2,mj2: stream 0, offset 0x30: partial file"),
+])
+def test_what_ffmpeg_says_while_opening(said, damage):
+    from artmotion.io.media import _opening_damage
+
+    assert _opening_damage(said) == damage
+
+
 def _cli(*args, env=None):
     return subprocess.run([sys.executable, "-m", "artmotion", *map(str, args)], capture_output=True, text=True,
                           env={**os.environ, **(env or {})}, timeout=300)

@@ -390,6 +390,28 @@ _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
 #: in colour when ``AV_LOG_FORCE_COLOR`` is set)
 _FFMPEG_LINE = re.compile(r"\[([^\]@]+?) @ (?:0x)?[0-9a-fA-F]+\] ?(.*)")
 _COLOUR = re.compile(r"\x1b\[[0-9;]*m")
+#: FFmpeg's messages while opening about the header's timing, which it replaces by a default: the
+#: frames are sound, and the caller finds the frame rate unknown and says so (``_probe_video``)
+_FFMPEG_TIMING = ("Invalid mdhd time scale 0, defaulting to 1",)
+#: FFmpeg's audio decoders (it decodes a little of every stream while opening, to know them)
+_AUDIO_CODEC = re.compile(r"(aac|ac3|eac3|mp[123]|opus|vorbis|flac|alac|pcm_|adpcm_|wma|amr|dca|dts|truehd|mlp|"
+                          r"speex|gsm|cook|atrac|qdm|nellymoser|g72)", re.IGNORECASE)
+
+
+def _opening_damage(said: list[str]) -> str | None:
+    """What FFmpeg reported about the file's data while it opened (:func:`_ffmpeg_said`), if
+    anything, leaving out what does not concern the frames: an audio stream's damage (artmotion
+    reads no audio), and header timing it replaced by a default (:data:`_FFMPEG_TIMING`). A video
+    decoder's report would be made again when the frame is read."""
+    told = []
+    for line in said:
+        bare = _COLOUR.sub("", line).strip()
+        m = _FFMPEG_LINE.match(bare)
+        if bare.endswith(_FFMPEG_TIMING) or (m is not None and _AUDIO_CODEC.match(m.group(1))):
+            continue
+        told.append(line)
+    return _ffmpeg_said(told)[1]
+
 #: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
 _FFMPEG_BARE = ("Truncating packet of size", "error while decoding")
 
@@ -509,7 +531,7 @@ def open_capture(path: str | os.PathLike):
         ffmpeg = cap.isOpened()
         if not ffmpeg:                           # (a file FFmpeg cannot read: OpenCV's own readers)
             cap = cv2.VideoCapture(os.fspath(path))
-    damage = _ffmpeg_said(said)[1] if ffmpeg else None
+    damage = _opening_damage(said) if ffmpeg else None
     if damage is not None:
         cap.release()
         raise InputError(f"damaged: FFmpeg found broken data while opening it ({damage})", path=path)

@@ -15,9 +15,10 @@ def quiet_native_logs() -> None:
     """Silence OpenCV's messages on stderr (``[ WARN:0] ... Failed to write frame``): the readers of
     :mod:`artmotion.io.media` report damage as one :class:`~artmotion.errors.InputError` naming the
     file, and writers are checked. FFmpeg's are not silenced (OpenCV then leaves FFmpeg's log at
-    its errors, on stderr): :mod:`artmotion.io.media` captures them around every call into FFmpeg,
-    because they are the only report of damage FFmpeg decoded around (``[mpeg4 @ 0x...] illegal dc
-    vlc``), and keeps them off stderr. ``ARTMOTION_DEBUG=1`` keeps them all."""
+    its errors, on stderr): :mod:`artmotion.io.media` captures them while a video opens and while
+    each frame decodes, because they are the only report of damage FFmpeg decoded around
+    (``[mpeg4 @ 0x...] illegal dc vlc``), and keeps them off stderr (a video writer's too, as it
+    opens and closes). ``ARTMOTION_DEBUG=1`` keeps them all."""
     if os.environ.get("ARTMOTION_DEBUG"):
         return
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")

@@ -63,8 +63,8 @@ def test_1_damaged_media_is_never_a_success(tmp_path):
     damaged = archive / "damaged.avi"
     damaged.write_bytes(bytes(data))
     res = _cli("track", damaged, "--det", seq / "det" / "det.txt", "--out", tmp_path / "r.txt")
-    # (FFmpeg reports the damaged frame as it decodes it: "frame 9 is damaged ... (mjpeg: overread 8)")
-    assert_one_line_error(res.returncode, res.stderr, "damaged.avi", "frame 9 is damaged")
+    # (FFmpeg reports the damaged frame as it decodes it: "damaged data at frame 9 ... (mjpeg: overread 8)")
+    assert_one_line_error(res.returncode, res.stderr, "damaged.avi", "damaged data at frame 9:")
     assert not (tmp_path / "r.txt").exists()
 
     short = inp.sequence(archive / "short")

@@ -237,8 +237,8 @@ def test_truncated_video_is_an_error(tmp_path, cut):
 
 
 def test_a_video_that_ends_early_is_an_error(tmp_path):
-    """Frames that do not decode at the end of a video whose header counts 40 (FFmpeg reports the
-    first of them as it fails to decode it; were it silent, the count would say it)."""
+    """Frames that do not decode at the end of a video whose header counts 40: FFmpeg reports the
+    first of them as it fails to decode it; were it silent, the count would say it (below)."""
     frames, _ = moving_blob(n=40)
     video = _video(tmp_path / "clip.avi", frames)
     data = bytearray(video.read_bytes())
@@ -246,7 +246,21 @@ def test_a_video_that_ends_early_is_an_error(tmp_path):
     video.write_bytes(bytes(data))
     seq = open_sequence(video)
     assert seq.length == 40                          # the header still says 40
-    with pytest.raises(InputError, match=r"clip\.avi: (frame \d+ is damaged|video ends after \d+ of its 40 frames)"):
+    with pytest.raises(InputError, match=r"clip\.avi: damaged data at frame 20: FFmpeg decoded around it"):
+        list(seq.frames())
+
+
+def test_a_video_that_ends_early_in_silence_is_an_error(tmp_path, monkeypatch):
+    """The same when FFmpeg says nothing (the frames after the 25th simply do not come)."""
+    import artmotion.io.sequence as sequence_mod
+
+    frames, _ = moving_blob(n=40)
+    video = _video(tmp_path / "clip.avi", frames)
+    read = sequence_mod.read_video_frame
+    monkeypatch.setattr(sequence_mod, "read_video_frame",
+                        lambda cap, path, number: read(cap, path, number) if number <= 25 else None)
+    seq = open_sequence(video)
+    with pytest.raises(InputError, match=r"clip\.avi: video ends after 25 of its 40 frames: frame 26 cannot be decoded"):
         list(seq.frames())
 
 

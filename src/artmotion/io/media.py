@@ -386,16 +386,18 @@ _DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS param
            "Huffman table", "Bogus", "libpng error")
 #: their other messages (e.g. "libpng warning: iCCP: known incorrect sRGB profile"): not shown
 _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
-#: a line of FFmpeg's own log (its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr,
-#: in colour when ``AV_LOG_FORCE_COLOR`` is set)
-_FFMPEG_LINE = re.compile(r"\[([^\]@]+?) @ (?:0x)?[0-9a-fA-F]+\] ?(.*)")
+#: FFmpeg's own log: its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr (after
+#: colour codes when ``AV_LOG_FORCE_COLOR`` is set), maybe after another writer's unfinished line
+_FFMPEG_LINE = re.compile(r"(?:\x1b\[[0-9;]*m)*\[([^\]@\s]+?) @ (?:0x)?[0-9a-fA-F]+\] ?")
 _COLOUR = re.compile(r"\x1b\[[0-9;]*m")
 #: FFmpeg's messages while opening about the header's timing, which it replaces by a default: the
 #: frames are sound, and the caller finds the frame rate unknown and says so (``_probe_video``)
 _FFMPEG_TIMING = ("Invalid mdhd time scale 0, defaulting to 1",)
 #: FFmpeg's audio decoders (it decodes a little of every stream while opening, to know them)
 _AUDIO_CODEC = re.compile(r"(aac|ac3|eac3|mp[123]|opus|vorbis|flac|alac|pcm_|adpcm_|wma|amr|dca|dts|truehd|mlp|"
-                          r"speex|gsm|cook|atrac|qdm|nellymoser|g72)", re.IGNORECASE)
+                          r"speex|gsm|cook|atrac|qdm|nellymoser|g72|qcelp|evrc|dvaudio|s302m|dolby_e|real_|sipr|"
+                          r"wavpack|ape|tta|als|ilbc|mace|ra_|smackaud|binkaudio|interplay_|roq_dpcm|xan_dpcm)",
+                          re.IGNORECASE)
 
 
 def _opening_damage(said: list[str]) -> str | None:
@@ -405,42 +407,39 @@ def _opening_damage(said: list[str]) -> str | None:
     decoder's report would be made again when the frame is read."""
     told = []
     for line in said:
-        bare = _COLOUR.sub("", line).strip()
-        m = _FFMPEG_LINE.match(bare)
-        if bare.endswith(_FFMPEG_TIMING) or (m is not None and _AUDIO_CODEC.match(m.group(1))):
+        m = _FFMPEG_LINE.search(line)
+        if _COLOUR.sub("", line).strip().endswith(_FFMPEG_TIMING) or (m is not None and _AUDIO_CODEC.match(m.group(1))):
             continue
         told.append(line)
     return _ffmpeg_said(told)[1]
 
 #: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
-_FFMPEG_BARE = ("Truncating packet of size", "error while decoding")
+_FFMPEG_BARE = re.compile(r"Truncating packet of size|error while decoding")
 
 
-def _ffmpeg_said(said: list[str]) -> tuple[set[int], str | None]:
-    """Which of the captured lines ``said`` are FFmpeg's (their indices), and the first thing it
-    said (``"codec: message"``; None when it said nothing). Its lines start with ``[codec @ 0x..]``,
-    except a few logged without a context (:data:`_FFMPEG_BARE`) and the text of a prefix that a
-    decoder ended with a line break (msmpeg4's ``[wmv1 @ 0x..]`` then ``error while decoding
-    block: 19 x 0``)."""
-    mine: set[int] = set()
+def _ffmpeg_said(said: list[str]) -> tuple[dict[int, int], str | None]:
+    """Which of the captured lines ``said`` hold FFmpeg's text, each with where it starts in the
+    line (another writer's unfinished line may come first: a progress bar), and the first thing it
+    said (``"codec: message"``; None when it said nothing). Its text starts with ``[codec @ 0x..]``
+    (after its colour codes, with ``AV_LOG_FORCE_COLOR``; the code that ends the colour comes on a
+    line of its own), except a few messages logged without a context (:data:`_FFMPEG_BARE`)."""
+    mine: dict[int, int] = {}
     first = None
-    codec = None          # the codec of a prefix whose text is on the next line
     for i, raw in enumerate(said):
-        line = _COLOUR.sub("", raw).strip()
-        m = _FFMPEG_LINE.match(line)
-        if m:
-            mine.add(i)
-            text = m.group(2).strip()
-            if text and first is None:
-                first = f"{m.group(1)}: {text}"
-            codec = None if text else m.group(1)
+        m = _FFMPEG_LINE.search(raw)
+        bare = _FFMPEG_BARE.search(raw) if m is None else None
+        if m is None and bare is None:
+            if i - 1 in mine and "\x1b" in raw and not _COLOUR.sub("", raw).strip():
+                mine[i] = 0
             continue
-        if line and (codec is not None or line.startswith(_FFMPEG_BARE)):
-            mine.add(i)
-            if first is None:
-                first = line if codec is None else f"{codec}: {line}"
-        codec = None
+        at = m if m is not None else bare
+        assert at is not None
+        mine[i] = at.start()
+        text = _COLOUR.sub("", raw[at.end():] if m is not None else raw[at.start():]).strip()
+        if text and first is None:
+            first = text if m is None else f"{m.group(1)}: {text}"
     return mine, first
+
 
 #: held while a decode points the file descriptor 2 at its scratch file: hold it to write to the
 #: real stderr (the command line's one-line error, which a decoding thread would otherwise swallow)
@@ -452,9 +451,23 @@ _capture = threading.local()
 def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
     """Point the file descriptor 2 at a scratch file while the block runs (native code writes
     there, out of Python's reach); the yielded list then holds the lines written meanwhile. Lines
-    that start with one of ``native`` are the library's and are kept off stderr; anything else
-    (another thread's) is passed on."""
+    that start with one of ``native``, and FFmpeg's (:func:`_ffmpeg_said`), are the libraries' and
+    are kept off stderr; anything else (another thread's: a progress bar) is passed on as it was
+    written. A capture inside another on the same thread reads what its own block wrote and leaves
+    the passing on to the outer one."""
     said: list[str] = []
+    if getattr(_capture, "depth", 0):
+        fd = _capture.file.fileno()           # fd 2 shares its offset: what the block writes follows
+        start = os.lseek(fd, 0, os.SEEK_CUR)
+        _capture.depth += 1
+        try:
+            yield said
+        finally:
+            _capture.depth -= 1
+            end = os.lseek(fd, 0, os.SEEK_CUR)
+            said += os.pread(fd, max(end - start, 0), start).decode("utf-8", "replace").splitlines()
+        return
+    raw = ""
     try:
         with stderr_lock:
             scratch = getattr(_capture, "file", None)
@@ -469,20 +482,44 @@ def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
                 saved = None
             if saved is not None:
                 os.dup2(scratch.fileno(), 2)
+            _capture.depth = 1
             try:
                 yield said
             finally:
+                _capture.depth = 0
                 if saved is not None:
                     os.dup2(saved, 2)
                     os.close(saved)
                 scratch.seek(0)
-                said += scratch.read().decode("utf-8", "replace").splitlines()
+                raw = scratch.read().decode("utf-8", "replace")
+                said += raw.splitlines()
     finally:
-        ffmpeg = _ffmpeg_said(said)[0] if not os.environ.get("ARTMOTION_DEBUG") else set()
-        other = [line for i, line in enumerate(said) if _COLOUR.sub("", line).strip() and not line.startswith(native)
-                 and i not in ffmpeg]
-        if other:
-            os.write(2, ("\n".join(other) + "\n").encode())
+        pieces = raw.splitlines(keepends=True)      # (the same lines as ``said``, with their ends)
+        ffmpeg = _ffmpeg_said(said)[0] if not os.environ.get("ARTMOTION_DEBUG") else {}
+        other = "".join(piece if i not in ffmpeg else piece[:ffmpeg[i]] for i, piece in enumerate(pieces)
+                        if not said[i].startswith(native))
+        if other.strip():
+            os.write(2, other.encode())
+
+
+def ffmpeg_quiet():
+    """A block whose FFmpeg messages (a video writer's opening and closing) are kept off stderr; a
+    writer's failure is found by :func:`check_written_video`, not by reading them. It holds
+    stderr for the block: keep the block to one call, never one that waits for another thread
+    that reads frames (a :meth:`~artmotion.io.sequence.Sequence.frames` with its prefetching
+    thread), which would wait for it in turn."""
+    _ffmpeg_logs_on_stderr()
+    return _stderr_captured(())
+
+
+def _ffmpeg_logs_on_stderr() -> None:
+    """Leave FFmpeg's log to its own default (its errors, on stderr), which :func:`read_video_frame`
+    reads: with ``OPENCV_FFMPEG_LOGLEVEL`` or ``OPENCV_FFMPEG_DEBUG`` set, OpenCV prints it on
+    stdout instead, where damage would pass unseen and the text would mix with a command's output.
+    OpenCV reads them when it first starts FFmpeg; ``ARTMOTION_DEBUG`` keeps them."""
+    if not os.environ.get("ARTMOTION_DEBUG"):
+        os.environ.pop("OPENCV_FFMPEG_LOGLEVEL", None)
+        os.environ.pop("OPENCV_FFMPEG_DEBUG", None)
 
 
 def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]:
@@ -526,6 +563,7 @@ def open_capture(path: str | os.PathLike):
     :class:`InputError` naming ``path``."""
     import cv2
 
+    _ffmpeg_logs_on_stderr()
     with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
         cap = cv2.VideoCapture(os.fspath(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
         ffmpeg = cap.isOpened()
@@ -539,24 +577,21 @@ def open_capture(path: str | os.PathLike):
     return cap
 
 
-def ffmpeg_quiet():
-    """A block whose FFmpeg messages (a video writer's) are kept off stderr; a writer's failure is
-    found by :func:`check_written_video`, not by reading them."""
-    return _stderr_captured(())
-
-
 def read_video_frame(cap, path: str | os.PathLike, number: int) -> np.ndarray | None:
     """The next frame of ``cap`` (:func:`open_capture`), ``None`` at its end. FFmpeg conceals
     damaged data (a frame's broken macroblocks filled from their neighbours; a cut last frame
     partly decoded) and reports it only in its log (``[mpeg4 @ 0x..] illegal dc vlc``), which is
     captured while the frame decodes: damage is an :class:`InputError` naming ``path`` and frame
-    ``number`` (counted from 1), not a frame with wrong pixels."""
+    ``number`` (counted from 1), not a frame with wrong pixels. A decoder that holds frames back
+    (MPEG-1 in Matroska; B-frames) reports a packet's damage a frame or two before the frame it
+    spoils comes out: the frame named is where the damage was found."""
     with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
         ok, img = cap.read()
     damage = _ffmpeg_said(said)[1]
     if damage is not None:
-        where = f"frame {number} is damaged" if ok else f"damaged after frame {number - 1}, its last"
-        raise InputError(f"{where}: FFmpeg decoded around broken data ({damage})", path=path)
+        where = (f"frame {number}" if ok else "its first frame, which does not decode" if number == 1
+                 else f"the end, after frame {number - 1}")
+        raise InputError(f"damaged data at {where}: FFmpeg decoded around it ({damage})", path=path)
     return img if ok else None
 
 
@@ -612,13 +647,12 @@ def check_written_video(path: str | os.PathLike, frames: int, where: str | os.Pa
 
     try:
         cap = open_capture(path)
-    except InputError:
-        count = -1
-    else:
-        try:
-            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
-        finally:
-            cap.release()
+    except InputError as exc:
+        raise InputError(f"the video written cannot be read back ({exc.reason}; disk full?)", path=where or path) from None
+    try:
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+    finally:
+        cap.release()
     if count != frames:
         got = "cannot be read back" if count < 0 else f"holds {count} of its {frames} frames"
         raise InputError(f"the video written {got} (disk full?)", path=where or path)

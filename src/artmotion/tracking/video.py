@@ -73,8 +73,7 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
                     cv2.putText(img, s, (8, 20 + 18 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 2,
                                 cv2.LINE_AA)
                 cv2.putText(img, f"#{n}", (8, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-                with ffmpeg_quiet():
-                    writer.write(img)
+                writer.write(img)     # (not captured: the frames' reader captures on its own thread)
                 written += 1
         finally:
             with ffmpeg_quiet():

@@ -44,6 +44,13 @@ def _broken(path, out):
     return out
 
 
+def _cut(path, out, share: float):
+    """The first ``share`` of ``path``'s bytes, at ``out``."""
+    data = path.read_bytes()
+    out.write_bytes(data[: int(len(data) * share)])
+    return out
+
+
 def _frames(path):
     cap = cv2.VideoCapture(str(path))
     got = []
@@ -71,9 +78,7 @@ def test_a_cut_mpeg_stream_ends_on_an_error_not_a_partial_frame(tmp_path):
     """An MPEG program stream states no frame count: cut, its last frame decoded in part."""
     clean = _write(tmp_path / "clean.mpg", "PIM1")
     assert [n for n, _ in open_sequence(clean).frames()] == list(range(1, N + 1))
-    cut = tmp_path / "cut.mpg"
-    data = clean.read_bytes()
-    cut.write_bytes(data[: int(len(data) * 0.77)])
+    cut = _cut(clean, tmp_path / "cut.mpg", 0.77)
     with pytest.raises(InputError, match=r"cut\.mpg: damaged data at (frame \d+|the end, after frame \d+): FFmpeg "
                                          r"decoded around it"):
         list(open_sequence(cut).frames())
@@ -83,9 +88,7 @@ def test_damage_ffmpeg_reports_while_opening_is_an_error(tmp_path):
     """Opening reads into the file: a cut FLV's damage is reported then, and then never again."""
     clean = _write(tmp_path / "clean.flv", "FLV1")
     assert [n for n, _ in open_sequence(clean).frames()] == list(range(1, N + 1))
-    cut = tmp_path / "cut.flv"
-    data = clean.read_bytes()
-    cut.write_bytes(data[: int(len(data) * 0.99)])
+    cut = _cut(clean, tmp_path / "cut.flv", 0.99)
     with pytest.raises(InputError, match=r"cut\.flv: damaged: FFmpeg found broken data while opening it \(flv: "):
         open_sequence(cut)
 

@@ -390,6 +390,8 @@ _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
 #: colour codes when ``AV_LOG_FORCE_COLOR`` is set), maybe after another writer's unfinished line
 _FFMPEG_LINE = re.compile(r"(?:\x1b\[[0-9;]*m)*\[([^\]@\s]+?) @ (?:0x)?[0-9a-fA-F]+\] ?")
 _COLOUR = re.compile(r"\x1b\[[0-9;]*m")
+#: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
+_FFMPEG_BARE = re.compile(r"Truncating packet of size|error while decoding")
 #: FFmpeg's messages while opening about the header's timing, which it replaces by a default: the
 #: frames are sound, and the caller finds the frame rate unknown and says so (``_probe_video``)
 _FFMPEG_TIMING = ("Invalid mdhd time scale 0, defaulting to 1",)
@@ -413,9 +415,6 @@ def _opening_damage(said: list[str]) -> str | None:
         told.append(line)
     return _ffmpeg_said(told)[1]
 
-#: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
-_FFMPEG_BARE = re.compile(r"Truncating packet of size|error while decoding")
-
 
 def _ffmpeg_said(said: list[str]) -> tuple[dict[int, int], str | None]:
     """Which of the captured lines ``said`` hold FFmpeg's text, each with where it starts in the
@@ -427,15 +426,13 @@ def _ffmpeg_said(said: list[str]) -> tuple[dict[int, int], str | None]:
     first = None
     for i, raw in enumerate(said):
         m = _FFMPEG_LINE.search(raw)
-        bare = _FFMPEG_BARE.search(raw) if m is None else None
-        if m is None and bare is None:
+        at = m or _FFMPEG_BARE.search(raw)
+        if at is None:
             if i - 1 in mine and "\x1b" in raw and not _COLOUR.sub("", raw).strip():
                 mine[i] = 0
             continue
-        at = m if m is not None else bare
-        assert at is not None
         mine[i] = at.start()
-        text = _COLOUR.sub("", raw[at.end():] if m is not None else raw[at.start():]).strip()
+        text = _COLOUR.sub("", raw[at.end() if m is not None else at.start():]).strip()
         if text and first is None:
             first = text if m is None else f"{m.group(1)}: {text}"
     return mine, first
@@ -494,12 +491,13 @@ def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
                 raw = scratch.read().decode("utf-8", "replace")
                 said += raw.splitlines()
     finally:
-        pieces = raw.splitlines(keepends=True)      # (the same lines as ``said``, with their ends)
-        ffmpeg = _ffmpeg_said(said)[0] if not os.environ.get("ARTMOTION_DEBUG") else {}
-        other = "".join(piece if i not in ffmpeg else piece[:ffmpeg[i]] for i, piece in enumerate(pieces)
-                        if not said[i].startswith(native))
-        if other.strip():
-            os.write(2, other.encode())
+        if raw:                                     # (nearly every decode writes nothing)
+            pieces = raw.splitlines(keepends=True)  # (the same lines as ``said``, with their ends)
+            ffmpeg = _ffmpeg_said(said)[0] if not os.environ.get("ARTMOTION_DEBUG") else {}
+            other = "".join(piece if i not in ffmpeg else piece[:ffmpeg[i]] for i, piece in enumerate(pieces)
+                            if not said[i].startswith(native))
+            if other.strip():
+                os.write(2, other.encode())
 
 
 def ffmpeg_quiet():
@@ -552,6 +550,12 @@ def _decode(buf: np.ndarray, flags: int) -> tuple[np.ndarray | None, str | None]
 _CONTAINER = ("Unexpected element",)
 
 
+def _video_captured():
+    """:func:`_stderr_captured` for a call into a video reader: its container messages kept off
+    stderr (all shown with ``ARTMOTION_DEBUG``)."""
+    return _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER)
+
+
 def open_capture(path: str | os.PathLike):
     """``cv2.VideoCapture(path)``, its container parser's messages kept off stderr (a damaged AVI
     prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error),
@@ -564,7 +568,7 @@ def open_capture(path: str | os.PathLike):
     import cv2
 
     _ffmpeg_logs_on_stderr()
-    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
+    with _video_captured() as said:
         cap = cv2.VideoCapture(os.fspath(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
         ffmpeg = cap.isOpened()
         if not ffmpeg:                           # (a file FFmpeg cannot read: OpenCV's own readers)
@@ -585,7 +589,7 @@ def read_video_frame(cap, path: str | os.PathLike, number: int) -> np.ndarray | 
     ``number`` (counted from 1), not a frame with wrong pixels. A decoder that holds frames back
     (MPEG-1 in Matroska; B-frames) reports a packet's damage a frame or two before the frame it
     spoils comes out: the frame named is where the damage was found."""
-    with _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER) as said:
+    with _video_captured() as said:
         ok, img = cap.read()
     damage = _ffmpeg_said(said)[1]
     if damage is not None:

@@ -2,24 +2,26 @@
 
     .venv/bin/python benchmarks/pose_unseen.py [--out out/pose] [--no-docs] [--skip-cv] [--save MODEL] [--resume]
 
-Renders (once, cached under --out) five training sets of 4000 frames: ``normal`` (the
+Renders (once, cached under --out) seven training sets of 4000 frames: ``normal`` (the
 pick-and-place script, seed 0), ``cover`` (``--motion cover --scenes 10``: the joint ranges covered
 evenly, ten backgrounds), ``cover_random`` (the same motion with ``--style random --scenes 100``:
-a hundred scenes, each in a random look of tissue and metal) and ``script3``, ``script4`` (the
-script with seeds 3 and 4), and ``cover_random10`` (ten random looks: the recipe before, for its
-ablation); pooled with each set a group (``fit(groups=...)``: the last 20 % of every set calibrate the
-variance, and the network never sees them), and four unseen test sequences of 600 frames: pick
+a hundred scenes, each in a random look of tissue and metal), ``script3``, ``script4``, ``script5``
+(the script with seeds 3, 4 and 5) and ``cover5`` (the cover motion with seed 5, ten backgrounds),
+and ``cover_random10`` (ten random looks: an earlier recipe, for its ablation); pooled with each
+set a group (``fit(groups=...)``: the last 20 % of every set calibrate the variance, and the
+network never sees them), and four unseen test sequences of 600 frames: pick
 and place with seeds 1 and 2, each in normal light and dark (``--dark``: the same frames in low
 light). Then, every model trained on the training crops only:
 
 * unseen sequences: HOG (the thesis' model on the script set, and on the pooled sets) and cnn
-  (the recipe: all five sets, with the boxes' places in their frames); raw, Kalman-filtered and
+  (the recipe: all seven sets, with the boxes' places in their frames); raw, Kalman-filtered and
   smoothed (forward and back);
   ±3σ coverage;
-* protocols side by side on the recipe's 20,000 crops: random 5-fold (the thesis), contiguous 5-fold;
-* learning curve: the cnn model on 1000-20,000 training crops (evenly spaced rows of the five sets);
-* ablations of the cnn model (mean over the four unseen sequences): the previous recipes (ten
-  random looks, not a hundred; three sets; two without the random looks), no box views, no
+* protocols side by side on the recipe's 28,000 crops: random 5-fold (the thesis), contiguous 5-fold;
+* learning curve: the cnn model on 1000-28,000 training crops (evenly spaced rows of the seven sets);
+* ablations of the cnn model (mean over the four unseen sequences): the previous recipes (five
+  sets, without ``script5`` and ``cover5``; ten random looks, not a hundred; three sets; two
+  without the random looks), no box views, no
   augmentation, equal loss weights, the smooth L1 loss's wider zone, cover set only, script set only;
 * error against the distance from a test pose to the nearest training pose;
 * cost: training time on 4000 crops, one frame's prediction, batch throughput (run it alone).
@@ -61,15 +63,18 @@ RENDERS = {  # name: (poses, seed, dark, motion, scenes, style)
     "cover_random10": (4000, 0, False, "cover", 10, "random"),
     "script3": (4000, 3, False, "script", 1, "default"),
     "script4": (4000, 4, False, "script", 1, "default"),
+    "script5": (4000, 5, False, "script", 1, "default"),
+    "cover5": (4000, 5, False, "cover", 10, "default"),
     "test": (600, 1, False, "script", 1, "default"),
     "dark": (600, 1, True, "script", 1, "default"),
     "test2": (600, 2, False, "script", 1, "default"),
     "dark2": (600, 2, True, "script", 1, "default"),
 }
-#: the training sets of the recipe (the script, the cover motion, the cover motion in random looks, two more
-#: script renders); the last 20 % of every set calibrate the variance (the network never sees them)
-RECIPE = ("cover", "normal", "cover_random", "script3", "script4")
-RECIPE_LABEL = "cnn + views, five sets (default recipe)"
+#: the training sets of the recipe (the script, the cover motion, the cover motion in random looks, three more
+#: script renders, the cover motion again); the last 20 % of every set calibrate the variance (the network
+#: never sees them)
+RECIPE = ("cover", "normal", "cover_random", "script3", "script4", "script5", "cover5")
+RECIPE_LABEL = "cnn + views, seven sets (default recipe)"
 
 UNSEEN = ("test", "dark", "test2", "dark2")
 
@@ -158,7 +163,7 @@ def main(argv=None):
     # -- unseen sequences
     train("HOG, script set (the thesis' model)", "hog", data["normal"][1], data["normal"][2])
     train("HOG, script and cover sets", "hog", imgs2, Y2, tr_G=G2)
-    train("HOG, five sets", "hog", imgs, Y, tr_G=G)
+    train("HOG, seven sets", "hog", imgs, Y, tr_G=G)
     cnn_reg, _ = train(RECIPE_LABEL, "cnn", imgs, Y, V, G)
     say("#### Unseen sequences (trained on rendered sets only; mean error in degrees, orientation / opening)")
     say()
@@ -179,19 +184,22 @@ def main(argv=None):
     for label in list(results):
         row(label)
     # -- ablations of the cnn recipe
-    before = tuple("cover_random10" if k == "cover_random" else k for k in RECIPE)  # ten random looks
-    train("cnn + views, five sets, ten random looks (the recipe before)", "cnn", *pooled(before))
+    five = RECIPE[:5]  # the recipe before the thirtieth session (2026-11-30)
+    before = tuple("cover_random10" if k == "cover_random" else k for k in five)  # ten random looks
+    train("cnn + views, five sets (the recipe before)", "cnn", *pooled(five))
+    train("cnn + views, five sets, ten random looks (an earlier recipe)", "cnn", *pooled(before))
     train("cnn + views, three sets (an earlier recipe)", "cnn", *pooled(before[:3]))
     train("cnn, script and cover sets (no random looks)", "cnn", imgs2, Y2, V2, G2)
     train("cnn without views", "cnn", imgs, Y, tr_G=G)
     train("cnn without augmentation", "cnn", imgs, Y, V, G, augment=False)
     train("cnn, opening weight 1 (not 3)", "cnn", imgs, Y, V, G, opening_weight=1.0)
     train("cnn, smooth L1 loss with β = 0.5 (the loss before; not 0.05)", "cnn", imgs, Y, V, G, net_beta=0.5)
-    train("cnn + views, five sets, variance calibrated on the last set only", "cnn", imgs, Y, V)
+    train("cnn + views, seven sets, variance calibrated on the last set only", "cnn", imgs, Y, V)
     train("cnn, cover set only", "cnn", data["cover"][1], data["cover"][2], data["cover"][3])
     train("cnn, script set only", "cnn", data["normal"][1], data["normal"][2], data["normal"][3])
-    for label in ("cnn + views, five sets, variance calibrated on the last set only",
-                  "cnn + views, five sets, ten random looks (the recipe before)",
+    for label in ("cnn + views, seven sets, variance calibrated on the last set only",
+                  "cnn + views, five sets (the recipe before)",
+                  "cnn + views, five sets, ten random looks (an earlier recipe)",
                   "cnn + views, three sets (an earlier recipe)",
                   "cnn, script and cover sets (no random looks)", "cnn without views",
                   "cnn without augmentation", "cnn, opening weight 1 (not 3)",
@@ -200,12 +208,12 @@ def main(argv=None):
         row(label)
     say()
     # -- learning curve
-    say("#### Learning curve (cnn + views; every k-th frame of the recipe's five training sets; mean over the four "
+    say("#### Learning curve (cnn + views; every k-th frame of the recipe's seven training sets; mean over the four "
         "unseen sequences)")
     say()
     say("| training crops | orientation | opening | all 4 in ±3σ | training (s) |")
     say("|---|---|---|---|---|")
-    sizes = (1000, 2000, 4000, 8000, 12000)
+    sizes = (1000, 2000, 4000, 8000, 12000, 20000)
     for n in sizes:
         idx = np.round(np.linspace(0, len(Y), n, endpoint=False)).astype(int)
         train(f"cnn, {n} crops", "cnn", [imgs[i] for i in idx], Y[idx], V[idx], G[idx])
@@ -259,7 +267,7 @@ def main(argv=None):
                 f"{cells[1]['orientation']:.2f} / {cells[1]['opening']:.2f} | {100 * cells[0]['all in 3sd']:.1f} % | "
                 f"{100 * cells[1]['all in 3sd']:.1f} % |")
         r = results[RECIPE_LABEL]
-        h = results["HOG, five sets"]
+        h = results["HOG, seven sets"]
         say(f"| unseen sequences (mean of four) | {h['mean orientation']:.2f} / {h['mean opening']:.2f} | "
             f"{r['mean orientation']:.2f} / {r['mean opening']:.2f} | {100 * h['mean all in 3sd']:.1f} % | "
             f"{100 * r['mean all in 3sd']:.1f} % |")

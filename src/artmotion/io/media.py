@@ -388,8 +388,8 @@ _DAMAGE = ("Corrupt JPEG data", "Premature end of JPEG file", "Invalid SOS param
 _CODEC = _DAMAGE + ("libpng warning", "Warning:", "JPEG", "Unsupported")
 #: FFmpeg's own log: its default callback writes ``[codec @ 0x55d0c0a8] message`` on stderr (after
 #: colour codes when ``AV_LOG_FORCE_COLOR`` is set), maybe after another writer's unfinished line
-_FFMPEG_LINE = re.compile(r"(?:\x1b\[[0-9;]*m)*\[([^\]@\s]+?) @ (?:0x)?[0-9a-fA-F]+\] ?")
 _COLOUR = re.compile(r"\x1b\[[0-9;]*m")
+_FFMPEG_LINE = re.compile(rf"(?:{_COLOUR.pattern})*\[([^\]@\s]+?) @ (?:0x)?[0-9a-fA-F]+\] ?")
 #: FFmpeg's messages logged without a context, so without the ``[codec @ 0x..]`` prefix
 _FFMPEG_BARE = re.compile(r"Truncating packet of size|error while decoding")
 #: FFmpeg's messages while opening about the header's timing, which it replaces by a default: the

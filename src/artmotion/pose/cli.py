@@ -30,6 +30,9 @@ pose_app = typer.Typer(
 BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' (pose render writes boxes.csv): where each crop lies in its "
               "frame; the cnn feature then learns the camera's perspective. Only with --feature cnn (hog and lbp "
               "do not use it: an error).")
+KEYPOINTS_HELP = ("CSV 'image,<point>_x,<point>_y,...' in pixels of each crop (pose render writes keypoints.csv): "
+                  "the tool's points, which the cnn feature's network learns to find besides the angles (training "
+                  "only; both cells empty: not known). Only with --feature cnn (an error with hog and lbp).")
 PREDICT_BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' of the crops: needed by a model trained with --boxes, "
                       "an error with any other model (it would not use them).")
 
@@ -69,10 +72,11 @@ def train_cmd(
     model: Path = typer.Option(..., "--model", help="Model file to write (.npz)."),
     feature: str = typer.Option("hog", "--feature", help="hog, lbp or cnn (a small network trained here; needs PyTorch)."),
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
+    keypoints: Optional[Path] = typer.Option(None, "--keypoints", help=KEYPOINTS_HELP),
     sets: Optional[list[Path]] = typer.Option(None, "--set", help=(
         "A further training sequence: a folder as 'pose render' writes it (crops/, labels.csv and, for every set or "
-        "none, boxes.csv: only --feature cnn uses it). Repeatable; the variance is calibrated on the end of every "
-        "sequence.")),
+        "none, boxes.csv; keypoints.csv if it has one: only --feature cnn uses these two). Repeatable; the variance "
+        "is calibrated on the end of every sequence.")),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
     inducing_var: int = typer.Option(250, "--inducing-var", help=(
@@ -87,31 +91,33 @@ def train_cmd(
     import numpy as np
 
     from artmotion.io import check_writable
-    from artmotion.pose.data import load_labelled, read_views
+    from artmotion.pose.data import load_labelled, read_keypoints, read_views
     from artmotion.pose.model import CALIBRATED_MIN, MIN_EXAMPLES, PoseRegressor
 
     if (images is None) != (labels is None):
         raise InputError("IMAGES and LABELS go together")
     if images is None and not sets:
         raise InputError("give the training crops: IMAGES LABELS.csv, or --set DIR (one or more)")
-    if images is None and boxes is not None:
-        raise InputError("--boxes goes with IMAGES (a --set folder has its own boxes.csv)")
-    seqs = [] if images is None or labels is None else [(images, labels, boxes)]
+    for option, given in (("--boxes", boxes), ("--keypoints", keypoints)):
+        if images is None and given is not None:
+            raise InputError(f"{option} goes with IMAGES (a --set folder has its own {option[2:]}.csv)")
+    seqs = [] if images is None or labels is None else [(images, labels, boxes, keypoints)]
     for d in sets or []:
         if not (d / "crops").is_dir() or not (d / "labels.csv").is_file():
             raise InputError("a training set is a folder with crops/ and labels.csv (pose render writes one)", path=d)
-        seqs.append((d / "crops", d / "labels.csv", d / "boxes.csv" if (d / "boxes.csv").is_file() else None))
+        bx, kp = (d / f if (d / f).is_file() else None for f in ("boxes.csv", "keypoints.csv"))
+        seqs.append((d / "crops", d / "labels.csv", bx, kp))
     seen: set[Path] = set()
-    for im, _, _ in seqs:
+    for im, *_ in seqs:
         if im.resolve() in seen:
             raise InputError("the same training sequence given twice", path=im)
         seen.add(im.resolve())
-    if feature != "cnn":  # hog and lbp do not use where a crop lies: a set's boxes.csv is not read
-        seqs = [(i, lab, None) for i, lab, _ in seqs]  # (--boxes with them: an error below)
-    if len({b is None for _, _, b in seqs}) > 1:
+    if feature != "cnn":  # hog and lbp use neither where a crop lies nor keypoints: a set's files are not read
+        seqs = [(i, lab, None, None) for i, lab, *_ in seqs]  # (--boxes, --keypoints with them: errors below)
+    if len({b is None for _, _, b, _ in seqs}) > 1:
         raise InputError("boxes for some training sequences but not for all: "
-                         + ", ".join(str(i) for i, _, b in seqs if b is None) + " have none")
-    check_writable(model, inputs=[f for seq in seqs for f in seq] + [boxes])
+                         + ", ".join(str(i) for i, _, b, _ in seqs if b is None) + " have none")
+    check_writable(model, inputs=[f for seq in seqs for f in seq] + [boxes, keypoints])
     check_range("--components", components, 0, 100_000, integer=True)
     check_range("--inducing", inducing, 1, 1_000_000, integer=True)
     check_range("--inducing-var", inducing_var, 0, 1_000_000, integer=True)
@@ -123,12 +129,16 @@ def train_cmd(
                         n_inducing_var=inducing_var or None)  # checks feature and method before any image is read
     if boxes is not None and feature != "cnn":
         raise InputError(f"--boxes needs --feature cnn (the {feature} feature does not use where a crop lies)")
+    if keypoints is not None and feature != "cnn":
+        raise InputError(f"--keypoints needs --feature cnn (the {feature} feature trains no network to find them)")
     if steps is not None and feature != "cnn":
         raise InputError(f"--steps needs --feature cnn (the {feature} feature trains no network)")
     names: list[str] = []
     imgs: list = []
     Ys, Vs, groups = [], [], []  # Vs: views of every sequence, or of none (checked above)
-    for k, (im, lab, bx) in enumerate(seqs):
+    Ks: list = []  # keypoints of each sequence (None: it has none)
+    point_names: list[str] = []
+    for k, (im, lab, bx, kp) in enumerate(seqs):
         n_k, paths, imgs_k, Y_k = load_labelled(im, lab, progress=True)
         _depth_note(paths)
         if names and n_k != names:
@@ -138,20 +148,31 @@ def train_cmd(
         Ys.append(Y_k)
         if bx is not None:
             Vs.append(read_views(bx, paths))
+        if kp is not None:
+            p_k, K_k = read_keypoints(kp, paths, [(c.shape[1], c.shape[0]) for c in imgs_k])
+            if point_names and p_k != point_names:
+                raise InputError(f"points {','.join(p_k)} differ from the first keypoints' {','.join(point_names)}",
+                                 path=kp)
+            point_names = p_k
+        Ks.append(None if kp is None else K_k)
         groups += [k] * len(Y_k)
     Y = np.concatenate(Ys)
     if len(Y) < MIN_EXAMPLES:
         raise InputError(f"{len(Y)} labelled crops: training needs at least {MIN_EXAMPLES}",
                          path=seqs[0][1] if len(seqs) == 1 else None)
     views = np.concatenate(Vs) if Vs else None
+    # a sequence without keypoints: none known in its crops (the network learns them from the others)
+    points = (np.concatenate([np.full((len(y), 2 * len(point_names)), np.nan) if k_ is None else k_
+                              for k_, y in zip(Ks, Ys)]) if point_names else None)
     t = time.perf_counter()
-    reg.fit(imgs, Y, names, views=views, groups=groups)
+    reg.fit(imgs, Y, names, views=views, groups=groups, keypoints=points)
     reg.save(model)
     gp = reg.gp_
     assert gp is not None  # fitted
     hyp = ", ".join(f"{n}: l={h.length:.3g} sn={h.sn2 ** 0.5 * s:.3g}°" for n, h, s in zip(names, gp.hypers, gp.y_std))
     source = f" from {len(seqs)} sequences" if len(seqs) > 1 else ""
-    typer.echo(f"trained {gp.kind} GP on {len(Y)} crops{source}, {gp.n_outputs} angles, feature {feature} "
+    points_note = f", its network also finding {len(point_names)} keypoints" if point_names else ""
+    typer.echo(f"trained {gp.kind} GP on {len(Y)} crops{source}, {gp.n_outputs} angles, feature {feature}{points_note} "
                f"({time.perf_counter() - t:.1f} s) -> {model}")
     typer.echo(f"  {hyp}")
     if gp.held_out is None:  # (fit_gp calibrates on 10 held-out crops or more)
@@ -233,6 +254,7 @@ def eval_cmd(
     dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen dark sequence."),
     dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen dark sequence."),
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
+    keypoints: Optional[Path] = typer.Option(None, "--keypoints", help=KEYPOINTS_HELP),
     test_boxes: Optional[Path] = typer.Option(None, "--test-boxes", help="Boxes of the unseen normal-light sequence."),
     dark_boxes: Optional[Path] = typer.Option(None, "--dark-boxes", help="Boxes of the unseen dark sequence."),
     orientation: Optional[str] = typer.Option(None, "--orientation",
@@ -243,7 +265,7 @@ def eval_cmd(
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""
-    from artmotion.pose.data import load_labelled, write_predictions
+    from artmotion.pose.data import load_labelled, read_keypoints, write_predictions
     from artmotion.pose.evaluate import Columns, check_result_keys, cross_validate, least_examples, summary
     from artmotion.pose.model import PoseRegressor
 
@@ -257,6 +279,8 @@ def eval_cmd(
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
     if boxes is not None and "cnn" not in feature:
         raise InputError("--boxes needs --feature cnn (hog and lbp do not use where a crop lies)")
+    if keypoints is not None and "cnn" not in feature:
+        raise InputError("--keypoints needs --feature cnn (hog and lbp train no network to find them)")
     # the outputs, known from the options: checked before the work (a folder of the user's own that
     # holds one of them was refused only once the evaluation was done)
     sets = ["cv"] + [key for key, given in (("test", test_images), ("dark", dark_images)) if given is not None]
@@ -270,6 +294,7 @@ def eval_cmd(
     if len(Y) < least:
         raise InputError(f"{len(Y)} labelled crops: {folds}-fold cross-validation needs at least {least}", path=labels)
     views = _views(boxes, paths)
+    points = None if keypoints is None else read_keypoints(keypoints, paths, [(c.shape[1], c.shape[0]) for c in imgs])[1]
     cols = Columns.from_names(names, orientation.split(",") if orientation else None, euler)
     check_result_keys(names, cols, sets[1:], path=labels)  # a column 'orientation' would hide the stem's error
     unseen = {}
@@ -298,14 +323,14 @@ def eval_cmd(
             t = time.perf_counter()
             X = regs[f].features(imgs)
             mean, std, fmean, fstd, fold = cross_validate(X, Y, names, folds, progress=True, split=split, feature=f,
-                                                          method=method, views=views)
+                                                          method=method, views=views, keypoints=points)
             res = summary(Y, mean, std, fmean, cols, names)
             res["seconds"] = time.perf_counter() - t
             if dst is not None:
                 write_predictions(dst / f"cv_{f}.csv", [p.name for p in paths], names, mean, std)
                 write_predictions(dst / f"cv_{f}_filtered.csv", [p.name for p in paths], names, fmean, fstd)
             if unseen:
-                reg = regs[f].fit(X, Y, names, views=views)
+                reg = regs[f].fit(X, Y, names, views=views, keypoints=points)
             for key, (upaths, uimgs, uY, uviews) in unseen.items():
                 um, us = reg.predict(uimgs, return_std=True, views=uviews)
                 ufm, ufs = reg.make_filter().filter(um, us)

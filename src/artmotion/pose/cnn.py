@@ -6,8 +6,10 @@ poses but does not extrapolate to new combinations of pose, background and light
 network (four 3×3 convolution blocks, a fully connected layer) is trained on the training crops
 to regress the standardised angles, under appearance augmentation (gain, contrast, gamma, tint,
 blur, noise, specular glints, box jitter, occluding bars): what it learns is pose, not
-appearance. Its last hidden layer is the feature the GP (Eq. 3.1-3.5) regresses the angles on,
-so the prediction keeps the GP's variance (the thesis' reason for a GP).
+appearance. Given the tool's keypoints (hinge, clevis, jaw tips), it also learns where they lie
+in the crop, an auxiliary task whose read-out is dropped once it is trained. Its last hidden
+layer is the feature the GP (Eq. 3.1-3.5) regresses the angles on, so the prediction keeps the
+GP's variance (the thesis' reason for a GP).
 
 No downloaded weights: the network is trained here (3000 mini-batches): 1 to 2.5 minutes on two
 CPU cores, depending on the CPU.
@@ -85,10 +87,12 @@ def _streak(length: float, angle: float) -> np.ndarray:
     return kernel / kernel.sum()
 
 
-def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def augment(batch: np.ndarray, rng: np.random.Generator,
+            points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Appearance changes that do not change the pose, for ``(n, h, w, 3)`` float crops in [0, 1]:
     box jitter (a detector's box is a few per cent off in position and size), motion blur, blur, specular
-    glints, an occluding bar (another instrument's shaft), gain, tint, gamma, sensor noise."""
+    glints, an occluding bar (another instrument's shaft), gain, tint, gamma, sensor noise. Returns
+    the crops and ``points`` ``(n, 2m)`` (x / width, y / height in each crop) moved with the box jitter."""
     n, h, w, _ = batch.shape
     out = np.empty_like(batch)
     scale = np.asarray(rng.uniform(0.92, 1.08, n))
@@ -96,6 +100,9 @@ def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     sigma = np.asarray(rng.uniform(0.0, 1.2, n))
     streak = np.where(rng.random(n) < 0.4, rng.uniform(2.0, 12.0, n), 0.0)  # motion blur: length in pixels
     streak_dir = np.asarray(rng.uniform(0, math.pi, n))
+    if points is not None:  # a point at u (a fraction of the width) goes to s u + (1 - s) / 2 + shift / w
+        xy = np.arange(points.shape[1]) % 2
+        points = (scale[:, None] * points + ((1 - scale)[:, None] / 2 + (shift / (w, h))[:, xy])).astype(np.float32)
     for i in range(n):
         s = scale[i]
         M = np.array([[s, 0, (1 - s) * w / 2 + shift[i, 0]], [0, s, (1 - s) * h / 2 + shift[i, 1]]], np.float32)
@@ -124,7 +131,7 @@ def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     gamma = rng.uniform(0.7, 1.4, (n, 1, 1, 1))
     out = np.clip(out * (gain * tint).astype(np.float32), 0, 1) ** gamma.astype(np.float32)
     noise = rng.standard_normal(out.shape, dtype=np.float32) * rng.uniform(0.0, 0.04, (n, 1, 1, 1)).astype(np.float32)
-    return (out + noise).astype(np.float32)
+    return (out + noise).astype(np.float32), points
 
 
 def target_scale(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,21 +142,37 @@ def target_scale(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64, seed: int = 0, width: int = 16,
             dim: int = DIM, extra: np.ndarray | None = None, augmented: bool = True, weights: np.ndarray | None = None,
-            progress: bool = False, beta: float = 0.05) -> CropNet:
+            progress: bool = False, beta: float = 0.05, points: np.ndarray | None = None,
+            point_weight: float = 0.5) -> CropNet:
     """Train :class:`CropNet` on ``(n, h, w, 3)`` float crops and angles ``Y`` (n, k), standardised
     here, for ``steps`` mini-batches of augmented crops (the cost does not grow with n); ``extra``
     ``(n, e)``: inputs joined to the convolutional features (where the box lies in its frame);
     ``weights`` ``(k,)``: each angle's weight in the loss (default equal); ``beta``: the smooth L1
     loss's quadratic zone in standard deviations (:class:`~artmotion.pose.model.PoseRegressor`'s
-    ``net_beta``)."""
+    ``net_beta``).
+
+    ``points`` ``(n, 2m)``: the tool's keypoints in each crop (x / width, y / height; NaN where not
+    known), auxiliary targets of weight ``point_weight`` each (against ``weights``): the network
+    also learns where the hinge and the jaw tips are, which ties its feature to the tool's geometry
+    rather than its look (multi-task learning; docs/pose.md). They are read out by ``2m`` more
+    outputs of its head, dropped once it is trained: the network returned predicts the angles only."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     mu, sd = target_scale(Y)
     T = torch.from_numpy(((Y - mu) / sd).astype(np.float32))
-    W = torch.from_numpy(np.ones(Y.shape[1], np.float32) if weights is None else np.asarray(weights, np.float32))
-    W = W / W.sum()
+    k = Y.shape[1]
+    W = np.ones(k, np.float32) if weights is None else np.asarray(weights, np.float32)
+    P = known = None
+    if points is not None:
+        known = np.isfinite(points)
+        P = np.where(known, points, 0.0).astype(np.float32)
+        p_mu = np.array([P[known[:, j], j].mean() if known[:, j].any() else 0.0 for j in range(P.shape[1])], np.float32)
+        p_sd = np.array([P[known[:, j], j].std() + 1e-6 if known[:, j].any() else 1.0 for j in range(P.shape[1])],
+                        np.float32)
+        W = np.concatenate([W, np.full(P.shape[1], point_weight, np.float32)])
+    W_t = torch.from_numpy(W / W.sum())
     E = None if extra is None else torch.from_numpy(np.asarray(extra, np.float32))
-    net = CropNet(Y.shape[1], width, dim, (crops.shape[2], crops.shape[1]), 0 if E is None else E.shape[1])
+    net = CropNet(len(W), width, dim, (crops.shape[2], crops.shape[1]), 0 if E is None else E.shape[1])
     # channels-last tensors take oneDNN's faster convolutions (a step 42-46 against 50-56 ms on one
     # machine, 23 against 28-30 ms on another; other weights, within another seed's spread: docs/pose.md)
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
@@ -168,7 +191,9 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
             if len(order) < batch:  # epochs of shuffled crops
                 order += rng.permutation(len(crops)).tolist()
             idx, order = np.array(order[:batch]), order[batch:]
-            yield idx, standardise(augment(crops[idx], rng) if augmented else crops[idx])
+            x, pts = augment(crops[idx], rng, None if P is None else P[idx]) if augmented else (
+                crops[idx], None if P is None else P[idx])
+            yield idx, standardise(x), pts
 
     # the next mini-batches are augmented on another thread while the network trains on this one
     # with one thread of its own (OpenCV and NumPy release Python's lock; the same batches as in
@@ -177,11 +202,16 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        for idx, xb in prefetched(batches(), 2):
+        for idx, xb, pts in prefetched(batches(), 2):
             x = torch.from_numpy(xb).contiguous(memory_format=torch.channels_last)
-            loss = nn.functional.smooth_l1_loss(net(x, None if E is None else E[idx]), T[idx],
-                                                beta=beta, reduction="none")
-            loss = (loss * W).sum(1).mean()
+            target, mask = T[idx], None
+            if pts is not None:
+                assert known is not None
+                target = torch.cat([target, torch.from_numpy((pts - p_mu) / p_sd)], 1)
+                mask = torch.from_numpy(np.concatenate([np.ones((len(idx), k), bool), known[idx]], 1))
+            loss = nn.functional.smooth_l1_loss(net(x, None if E is None else E[idx]), target, beta=beta,
+                                                reduction="none") * W_t
+            loss = (loss if mask is None else loss * mask).sum(1).mean()
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -192,6 +222,12 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
         torch.set_num_threads(threads)
         if bar is not None:
             bar.close()
+    if P is not None:  # the keypoints' read-out is dropped: the head reads out the angles only
+        head = nn.Linear(dim, k)
+        with torch.no_grad():
+            head.weight.copy_(net.head.weight[:k])
+            head.bias.copy_(net.head.bias[:k])
+        net.head = head
     return net.to(memory_format=torch.contiguous_format).eval()
 
 

@@ -156,6 +156,25 @@ def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Seq
 BOX_COLUMNS = ["image", "x", "y", "w", "h", "frame_w", "frame_h"]
 
 
+def _per_image(path, rows, parse, images: Sequence[Path], what: str) -> list:
+    """``parse(row, line)`` of the CSV ``rows`` matched to ``images`` by file name without extension
+    (a crop ``000001.png`` and its frame ``000001.jpg``): every image needs a row, and a name may
+    have one row only (``what`` it is, in messages)."""
+    table = {}
+    for lineno, row in rows:
+        stem = Path(row[0]).stem
+        if not stem:
+            raise InputError("empty image name", path=path, line=lineno)
+        if stem in table:
+            raise InputError(f"a second {what} for image {row[0]!r}", path=path, line=lineno)
+        table[stem] = parse(row, lineno)
+    missing = [p.name for p in images if p.stem not in table]
+    if missing:
+        raise InputError(f"no {what} for image {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1
+                                                                    else ""), path=path)
+    return [table[p.stem] for p in images]
+
+
 def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
     """Where each crop was cut from its frame (:func:`artmotion.pose.features.box_views`), from a
     CSV ``image,x,y,w,h,frame_w,frame_h`` (``artmotion pose render`` writes one, ``boxes.csv``).
@@ -166,13 +185,8 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
     header, rows = read_csv(path, what="boxes CSV")
     if [h.lower() for h in header] != BOX_COLUMNS:
         raise InputError(f"header must be '{','.join(BOX_COLUMNS)}'", path=path, line=1)
-    boxes, sizes = {}, {}
-    for lineno, row in rows:
-        stem = Path(row[0]).stem
-        if not stem:
-            raise InputError("empty image name", path=path, line=lineno)
-        if stem in boxes:
-            raise InputError(f"a second box for image {row[0]!r}", path=path, line=lineno)
+
+    def box(row: list[str], lineno: int) -> tuple[tuple[float, ...], tuple[float, float]]:
         x, y = (cell_number(c, n, path, lineno, -1e6, 1e6) for n, c in zip(("x", "y"), row[1:3]))
         w, h, fw, fh = (cell_number(c, n, path, lineno, 1e-3, 1e6) for n, c in zip(BOX_COLUMNS[3:], row[3:7]))
         if x >= fw or y >= fh or x + w <= 0 or y + h <= 0:  # a crop is cut from inside its frame
@@ -181,9 +195,37 @@ def read_views(path: str | os.PathLike, images: Sequence[Path]) -> np.ndarray:
         if w > 2 * fw or h > 2 * fh:      # (one may run over the frame's edge, not be many frames wide)
             raise InputError(f"the box ({x:g}, {y:g}, {w:g}, {h:g}) is more than twice as large as its {fw:g}x{fh:g} "
                              "frame", path=path, line=lineno)
-        boxes[stem], sizes[stem] = (x, y, w, h), (fw, fh)
-    missing = [p.name for p in images if p.stem not in boxes]
-    if missing:
-        raise InputError(f"no box for image {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""),
-                         path=path)
-    return box_views([boxes[p.stem] for p in images], [sizes[p.stem] for p in images])
+        return (x, y, w, h), (fw, fh)
+
+    boxes = _per_image(path, rows, box, images, "box")
+    return box_views([b for b, _ in boxes], [size for _, size in boxes])
+
+
+def read_keypoints(path: str | os.PathLike, images: Sequence[Path],
+                   sizes: Sequence[tuple[int, int]]) -> tuple[list[str], np.ndarray]:
+    """``(point names, K)``: the tool's keypoints in each crop from a CSV ``image,<point>_x,<point>_y,...``
+    in pixels of the crop (``artmotion pose render`` writes one, ``keypoints.csv``), as ``K``
+    ``(n, 2m)`` fractions of each crop's width and height (``sizes``: ``(w, h)`` of ``images``),
+    the form :meth:`artmotion.pose.model.PoseRegressor.fit` takes. Rows are matched to the crops by
+    file name without extension; every crop needs a row. A point whose x and y are both empty is not
+    known in that crop (hidden, or outside it): NaN."""
+    header, rows = read_csv(path, what="keypoints CSV")
+    pairs = header[1:]
+    names = [c[:-2] for c in pairs[0::2]]
+    if (len(header) < 3 or header[0].lower() != "image" or len(pairs) % 2
+            or any(x != f"{n}_x" or y != f"{n}_y" for n, x, y in zip(names, pairs[0::2], pairs[1::2]))):
+        raise InputError("header must be 'image,<point>_x,<point>_y,...' (one x, y pair per point)", path=path, line=1)
+
+    def point_row(row: list[str], lineno: int) -> list[float]:
+        values = []
+        for n, x, y in zip(names, row[1::2], row[2::2]):
+            if (x == "") != (y == ""):
+                raise InputError(f"point {n!r} has an x or a y but not both (both empty: not known)", path=path,
+                                 line=lineno)
+            values += [np.nan, np.nan] if x == "" else [cell_number(c, f"{n}_{a}", path, lineno, -1e6, 1e6)
+                                                       for a, c in (("x", x), ("y", y))]
+        return values
+
+    points = _per_image(path, rows, point_row, images, "row of keypoints")
+    K = np.array(points, dtype=float).reshape(len(images), len(pairs))
+    return names, K / np.tile(np.asarray(sizes, dtype=float), len(names))

@@ -109,7 +109,8 @@ def least_examples(folds: int) -> int:
 
 
 def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: int = 5, progress: bool = False,
-                   split: str = "random", seed: int = 0, views: np.ndarray | None = None, **reg_kwargs):
+                   split: str = "random", seed: int = 0, views: np.ndarray | None = None,
+                   keypoints: np.ndarray | None = None, **reg_kwargs):
     """Out-of-fold predictions: ``(mean, std, filtered_mean, filtered_std, fold_id)``.
 
     ``split="random"``: frames are dealt to folds at random (the usual k-fold protocol;
@@ -121,7 +122,8 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     of the folds' acceleration priors (each from training labels only). The filter here is the
     labels' own motion prior, untuned (the thesis's protocol; not :meth:`PoseRegressor.make_filter`,
     whose tuning on calibration rows the unseen-sequence figures use). ``views``: the crops'
-    :func:`artmotion.pose.features.box_views`, for models that use them.
+    :func:`artmotion.pose.features.box_views`, for models that use them; ``keypoints``: the
+    training crops' keypoints (:meth:`PoseRegressor.fit`), for the ``cnn`` feature's training.
     """
     n = len(X)
     if split not in ("contiguous", "random"):
@@ -150,7 +152,8 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
         train = np.setdiff1d(np.arange(n), test)
         reg = PoseRegressor(**reg_kwargs)
         # keep the training blocks in time order so the motion prior sees real sequences
-        reg.fit(X[train], Y[train], names, views=None if views is None else views[train])
+        reg.fit(X[train], Y[train], names, views=None if views is None else views[train],
+                keypoints=None if keypoints is None else keypoints[train])
         m, s = reg.predict(X[test], return_std=True, views=None if views is None else views[test])
         mean[test], std[test] = m, s
         accel.append(accel_variance(Y[train], frames=train))  # training labels, no gaps or seams

@@ -127,6 +127,7 @@ class _Params(NamedTuple):
     net_steps: int
     opening_weight: float
     net_beta: float
+    keypoint_weight: float
 
 
 class PoseRegressor(BaseEstimator):
@@ -142,7 +143,9 @@ class PoseRegressor(BaseEstimator):
     jaws are small in the crop and their look depends on the roll; 3 takes 8 % off its error on
     unseen motion, docs/pose.md), ``net_beta`` (``cnn``: the smooth L1 loss's quadratic zone in
     standard deviations of each angle; 0.05, nearly the absolute error, learns the median, which
-    errs less on average than the mean a wide zone learns, docs/pose.md), ``net_mean`` (``cnn``:
+    errs less on average than the mean a wide zone learns, docs/pose.md), ``keypoint_weight`` (``cnn``
+    trained with ``keypoints``: the loss weight of each keypoint coordinate, an auxiliary target;
+    docs/pose.md), ``net_mean`` (``cnn``:
     which angles take the network's own read-out of its feature as their mean, the GP giving
     their variance: ``"opening"`` (the default), ``"all"`` or ``"none"``. Away from its training
     crops a GP's mean falls back to the training mean, which pulls a wide-open or closed jaw
@@ -185,7 +188,7 @@ class PoseRegressor(BaseEstimator):
                  neighbours: int | None = 16, n_inducing: int = 1000, n_opt: int = 500, restarts: int = 1,
                  seed: int = 0, progress: bool = False, inducing: str = "kmeans", net_steps: int = 3000,
                  augment: bool = True, opening_weight: float = 3.0, net_mean: str = "opening",
-                 n_inducing_var: int | None = 250, net_beta: float = 0.05):
+                 n_inducing_var: int | None = 250, net_beta: float = 0.05, keypoint_weight: float = 0.5):
         # the names only, and nothing stored but the parameters as given (scikit-learn: ``clone``
         # makes the model anew from ``get_params``); the numbers are checked by fit (_params)
         _check_choices(feature=feature, method=method, net_mean=net_mean)
@@ -197,6 +200,7 @@ class PoseRegressor(BaseEstimator):
         self.augment = augment
         self.opening_weight = opening_weight
         self.net_beta = net_beta
+        self.keypoint_weight = keypoint_weight
         self.net_mean = net_mean
         self.n_components = n_components
         self.method = method
@@ -232,7 +236,8 @@ class PoseRegressor(BaseEstimator):
                        n_inducing_var=optional("n_inducing_var"), n_opt=count("n_opt", 2), restarts=count("restarts", 0),
                        seed=_seed(self.seed), net_steps=count("net_steps", 1),
                        opening_weight=float(check_range("opening_weight", self.opening_weight, 0.0, 1e6)),
-                       net_beta=float(check_range("net_beta", self.net_beta, 0.0, 1e6)))
+                       net_beta=float(check_range("net_beta", self.net_beta, 0.0, 1e6)),
+                       keypoint_weight=float(check_range("keypoint_weight", self.keypoint_weight, 0.0, 1e6)))
 
     def _crop_params(self) -> tuple[int, tuple[int, int], float]:
         """``cell``, ``size`` and ``blur``, the parameters of :meth:`features`, checked, their
@@ -302,11 +307,17 @@ class PoseRegressor(BaseEstimator):
         return V if (self.feature == "cnn" if fitting else self.uses_views_) else None
 
     # -- training / prediction
-    def fit(self, images, Y, names: Sequence[str] | None = None, views=None, groups=None):
+    def fit(self, images, Y, names: Sequence[str] | None = None, views=None, groups=None, keypoints=None):
         """Fit on crops (list of images) or a precomputed feature matrix, and angles ``Y`` (n, k).
 
         ``views`` (``cnn`` only, else ignored): :func:`artmotion.pose.features.box_views` of the
         crops' boxes; a model trained with them needs them at prediction too.
+
+        ``keypoints`` (``cnn`` only, else ignored): ``(n, 2m)`` points of the tool in each crop as
+        fractions of its width and height (x / w, y / h, as :func:`artmotion.pose.data.read_keypoints`
+        gives them; NaN where not known), which the network learns to find besides the angles, each
+        coordinate with the loss weight ``keypoint_weight`` (:func:`artmotion.pose.cnn.fit_net`).
+        Only training uses them; the model predicts the angles from the crop alone.
 
         The GP's variance is calibrated on the last ``CALIBRATE`` of the rows (a ``cnn`` network
         never sees them). ``groups`` (one label per row: the recording or render each crop comes
@@ -334,6 +345,7 @@ class PoseRegressor(BaseEstimator):
         self.pca_mean_ = self.pca_components_ = None
         self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None
         V = self._check_views(views, len(X), fitting=True)
+        K = _check_keypoints(keypoints, len(X)) if self.feature == "cnn" else None
         order, n_cal, frames = calibration_order(len(X), groups)
         self.accel_var_ = accel_variance(Y, frames=frames)
         self.filter_std_ = self.smooth_std_ = np.ones(Y.shape[1])
@@ -350,7 +362,8 @@ class PoseRegressor(BaseEstimator):
             weights = [p.opening_weight if is_opening(n) else 1.0 for n in self.names_]
             self.net_ = cnn.fit_net(crops, Y[rows], p.net_steps, seed=p.seed, extra=None if V is None else V[rows],
                                     augmented=self.augment, weights=np.array(weights), progress=self.progress,
-                                    beta=p.net_beta)
+                                    beta=p.net_beta, points=None if K is None else K[rows],
+                                    point_weight=p.keypoint_weight)
             self.net_mu_, self.net_sd_ = cnn.target_scale(Y[rows])
             self.readout_ = np.array([self.net_mean == "all" or (self.net_mean == "opening" and is_opening(n))
                                       for n in self.names_])
@@ -598,6 +611,28 @@ class PoseRegressor(BaseEstimator):
         except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         return reg
+
+
+#: how far outside its crop a keypoint may lie (in crop widths / heights): a jaw tip may leave the box
+_MAX_KEYPOINT = 100.0
+
+
+def _check_keypoints(keypoints, n: int) -> np.ndarray | None:
+    """``keypoints`` of :meth:`PoseRegressor.fit` checked: ``(n, 2m)`` numbers, NaN where a point is
+    not known (as a whole: x and y both), none infinite or far outside its crop."""
+    if keypoints is None:
+        return None
+    K = np.asarray(keypoints, dtype=np.float64)
+    if K.ndim != 2 or len(K) != n or K.shape[1] == 0 or K.shape[1] % 2:
+        raise InputError(f"keypoints must be {n} rows of x, y pairs (one row per crop), got shape {K.shape}")
+    if np.isinf(K).any():
+        raise InputError("keypoints hold infinite values")
+    if (np.isnan(K[:, 0::2]) != np.isnan(K[:, 1::2])).any():
+        raise InputError("a keypoint has an x but no y, or a y but no x (NaN marks a point not known: both)")
+    if np.nanmax(np.abs(K), initial=0.0) > _MAX_KEYPOINT:
+        raise InputError(f"keypoints lie more than {_MAX_KEYPOINT:g} crop widths or heights outside their crops "
+                         "(they are fractions of the crop's width and height: x / w, y / h)")
+    return K
 
 
 def _one_image(image: np.ndarray) -> InputError:

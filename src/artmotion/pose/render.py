@@ -252,6 +252,22 @@ class ToolPose:
         return TROCAR if self.origin is None else self.origin
 
 
+#: the tool's named points :func:`keypoints` gives (and ``pose render`` writes into keypoints.csv):
+#: where the jaws hinge, where the metal clevis meets the stem, and the two jaw tips
+KEYPOINTS = ("hinge", "clevis", "jaw1", "jaw2")
+
+
+def keypoints(pose: ToolPose) -> np.ndarray:
+    """The image points ``(4, 2)`` (pixels of the frame) of :data:`KEYPOINTS` of the tool in ``pose``."""
+    R = pose.rotation()
+    tip = pose.tip()
+    pts = [tip, tip - R[:, 0] * CLEVIS_LEN]
+    for sign in (1.0, -1.0):  # the jaws' centre lines (:func:`_jaw_faces`) at their ends
+        half = math.radians(pose.opening) / 2 * sign
+        pts.append(tip + R @ np.array([math.cos(half) * JAW_LEN, math.sin(half) * JAW_LEN, 0.0]))
+    return project(np.array(pts))
+
+
 def draw_tool(img, pose: ToolPose, stem_color=(40, 40, 45), metal=(175, 175, 180), glint=0.8, spec_shift=0.3):
     """Draw the grasper; returns the 2-D points of its end effector (for the bounding box)."""
     R = pose.rotation()
@@ -342,6 +358,7 @@ class RenderedFrame:
     frame: np.ndarray  # BGR uint8
     box: tuple[int, int, int, int]  # x, y, w, h
     angles: np.ndarray  # yaw, pitch, roll, opening (deg)
+    points: np.ndarray  # (4, 2) frame pixels of KEYPOINTS
 
 
 def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "script", scenes: int = 1,
@@ -433,7 +450,7 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
         y0, y1 = y0 - pad[2] * h, y1 + pad[3] * h
         x0, y0 = max(0, int(round(x0))), max(0, int(round(y0)))
         x1, y1 = min(WIDTH, int(round(x1))), min(HEIGHT, int(round(y1)))
-        yield RenderedFrame(frame, (x0, y0, max(2, x1 - x0), max(2, y1 - y0)), traj[i, :4].copy())
+        yield RenderedFrame(frame, (x0, y0, max(2, x1 - x0), max(2, y1 - y0)), traj[i, :4].copy(), keypoints(pose_i))
 
 
 #: the most poses one command renders (a 4000-frame sequence takes about a minute)
@@ -441,13 +458,14 @@ MAX_POSES = 1_000_000
 
 
 #: what a rendering folder holds; ``rendering.json`` (how it was rendered) marks it as one
-RENDERING = frozenset({"crops", "frames", "labels.csv", "boxes.csv", "rendering.json"})
+RENDERING = frozenset({"crops", "frames", "labels.csv", "keypoints.csv", "boxes.csv", "rendering.json"})
 
 
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
                   progress: bool = False, motion: str = "script", scenes: int = 1, style: str = "default") -> Path:
-    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``frames/*.jpg``, ``boxes.csv``,
-    ``rendering.json`` (the options it was rendered with).
+    """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``keypoints.csv`` (the tool's
+    :data:`KEYPOINTS` in pixels of each crop), ``frames/*.jpg``, ``boxes.csv``, ``rendering.json``
+    (the options it was rendered with).
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
@@ -482,7 +500,7 @@ def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progr
         from tqdm import tqdm
 
         it = tqdm(it, total=n, desc="render", unit="frame", disable=None)
-    rows, boxes = [], []
+    rows, points, boxes = [], [], []
     for i, rf in enumerate(it, start=1):
         name = f"{i:06d}.png"
         x, y, w, h = rf.box
@@ -490,11 +508,14 @@ def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progr
         if frames:
             write_image(out / "frames" / f"{i:06d}.jpg", rf.frame, [cv2.IMWRITE_JPEG_QUALITY, 92])
         rows.append((name, *rf.angles))
+        points.append((name, *(rf.points - (x, y)).ravel()))
         boxes.append((f"{i:06d}.jpg", x, y, w, h))
-    with atomic_write(out / "labels.csv") as fh:
-        fh.write("image," + ",".join(ANGLES) + "\n")
-        for r in rows:
-            fh.write(r[0] + "," + ",".join(f"{v:.4f}" for v in r[1:]) + "\n")
+    for file, header, table in (("labels.csv", ANGLES, rows),
+                                ("keypoints.csv", [f"{k}_{c}" for k in KEYPOINTS for c in "xy"], points)):
+        with atomic_write(out / file) as fh:
+            fh.write("image," + ",".join(header) + "\n")
+            for r in table:
+                fh.write(r[0] + "," + ",".join(f"{v:.4f}" for v in r[1:]) + "\n")
     if frames:
         with atomic_write(out / "boxes.csv") as fh:
             fh.write("image,x,y,w,h,frame_w,frame_h\n")

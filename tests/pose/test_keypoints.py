@@ -51,6 +51,8 @@ def test_read_keypoints_checks_its_file(tmp_path):
     names, K = read_keypoints(f, crops, sizes)
     assert names == ["a", "b"]
     np.testing.assert_allclose(K, [[0.5, 0.5, 0.1, 0.1], [np.nan, np.nan, 0.1, 0.1]])
+    f.write_text("image,a_x,a_y\n000001.png,,\n000002.png,-4,30\n")   # none known; just outside the crop
+    np.testing.assert_allclose(read_keypoints(f, crops, sizes)[1], [[np.nan, np.nan], [-0.1, 1.5]])
     bad = {
         "image,a_x,a_z\n000001.png,1,2\n000002.png,1,2\n": "keypoints.csv:1: header must be",
         "image,a_x,a_y\n000001.png,1,\n000002.png,1,2\n": "keypoints.csv:2: point 'a' has an x or a y but not both",
@@ -58,6 +60,8 @@ def test_read_keypoints_checks_its_file(tmp_path):
         "image,a_x,a_y\n000001.png,1,2\n000002.png,1,2\n000001.jpg,1,2\n": "keypoints.csv:4: a second row of keypoints",
         "image,a_x,a_y\n000001.png,1,nan\n000002.png,1,2\n": "keypoints.csv:2: a_y",
         "image,a_x,a_y\n000001.png,1,2\n000002.png,1\n": "keypoints.csv:3: expected 3 values",
+        "image,a_x,a_y\n000001.png,1,2\n000002.png,9999,2\n":   # 250 widths of its 40-px crop: frame pixels?
+            "keypoints.csv: the keypoints of image '000002.png' lie more than 100 crop widths",
     }
     for text, message in bad.items():
         f.write_text(text)

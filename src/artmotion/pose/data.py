@@ -154,6 +154,8 @@ def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Seq
 
 
 BOX_COLUMNS = ["image", "x", "y", "w", "h", "frame_w", "frame_h"]
+#: how far outside its crop a keypoint may lie, in crop widths / heights (a jaw tip may leave the box)
+MAX_KEYPOINT = 100.0
 
 
 def _per_image(path, rows, parse, images: Sequence[Path], what: str) -> list:
@@ -228,4 +230,9 @@ def read_keypoints(path: str | os.PathLike, images: Sequence[Path],
 
     points = _per_image(path, rows, point_row, images, "row of keypoints")
     K = np.array(points, dtype=float).reshape(len(images), len(pairs))
-    return names, K / np.tile(np.asarray(sizes, dtype=float), len(names))
+    K /= np.tile(np.asarray(sizes, dtype=float), len(names))
+    far = np.flatnonzero(np.nanmax(np.abs(K), axis=1, initial=0.0) > MAX_KEYPOINT)
+    if len(far):
+        raise InputError(f"the keypoints of image {images[far[0]].name!r} lie more than {MAX_KEYPOINT:g} crop widths or "
+                         "heights outside the crop (pixels of the crop, not of the frame?)", path=path)
+    return names, K

@@ -21,6 +21,7 @@ from artmotion.errors import InputError, check_range, check_seed, need_package
 from artmotion.io import atomic_path
 from artmotion.io.files import read_head
 from artmotion.pose import features as F
+from artmotion.pose.data import MAX_KEYPOINT
 from artmotion.pose.filter import PoseFilter, accel_variance, tune_filter
 from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
@@ -613,10 +614,6 @@ class PoseRegressor(BaseEstimator):
         return reg
 
 
-#: how far outside its crop a keypoint may lie (in crop widths / heights): a jaw tip may leave the box
-_MAX_KEYPOINT = 100.0
-
-
 def _check_keypoints(keypoints, n: int) -> np.ndarray | None:
     """``keypoints`` of :meth:`PoseRegressor.fit` checked: ``(n, 2m)`` numbers, NaN where a point is
     not known (as a whole: x and y both), none infinite or far outside its crop."""
@@ -629,8 +626,8 @@ def _check_keypoints(keypoints, n: int) -> np.ndarray | None:
         raise InputError("keypoints hold infinite values")
     if (np.isnan(K[:, 0::2]) != np.isnan(K[:, 1::2])).any():
         raise InputError("a keypoint has an x but no y, or a y but no x (NaN marks a point not known: both)")
-    if np.nanmax(np.abs(K), initial=0.0) > _MAX_KEYPOINT:
-        raise InputError(f"keypoints lie more than {_MAX_KEYPOINT:g} crop widths or heights outside their crops "
+    if np.nanmax(np.abs(K), initial=0.0) > MAX_KEYPOINT:
+        raise InputError(f"keypoints lie more than {MAX_KEYPOINT:g} crop widths or heights outside their crops "
                          "(they are fractions of the crop's width and height: x / w, y / h)")
     return K
 

@@ -144,7 +144,7 @@ def test_pose_regressor_checks_its_keypoints():
         "rows of x, y pairs ": pts[:5],
         "infinite": np.where(np.arange(12)[:, None] == 3, np.inf, pts),
         "an x but no y": np.where([[True, False]], np.nan, pts),
-        "outside their crops": pts * 1000,
+        "from their crops' corners": pts * 1000,
     }
     for message, K in bad.items():
         with pytest.raises(InputError, match=message.strip()):
@@ -162,6 +162,9 @@ def test_pose_regressor_checks_its_keypoints():
     assert mean.shape == Y.shape and np.isfinite(mean).all()
     with pytest.raises(InputError, match="rows of x, y pairs"):
         cross_validate(X, Y, ["a", "b"], 2, feature="cnn", net_steps=2, keypoints=pts[:, :1])
+    for short in (pts[:5], pts[:5].tolist()):   # too few rows: one line, not an IndexError in a fold
+        with pytest.raises(InputError, match="12 rows of x, y pairs"):
+            cross_validate(X, Y, ["a", "b"], 2, feature="hog", keypoints=short)
 
 
 def test_cli_trains_with_the_sets_keypoints(run_cli, tmp_path):

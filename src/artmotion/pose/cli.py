@@ -33,6 +33,9 @@ BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' (pose render writes boxes.csv
 KEYPOINTS_HELP = ("CSV 'image,<point>_x,<point>_y,...' in pixels of each crop (pose render writes keypoints.csv): "
                   "the tool's points, which the cnn feature's network learns to find besides the angles (training "
                   "only; both cells empty: not known). Only with --feature cnn (an error with hog and lbp).")
+EVAL_KEYPOINTS_HELP = ("CSV 'image,<point>_x,<point>_y,...' of IMAGES' crops (pose render writes keypoints.csv): "
+                       "the cnn feature's network learns to find them in every fold's training (hog and lbp ignore "
+                       "them; an error without --feature cnn).")
 PREDICT_BOXES_HELP = ("CSV 'image,x,y,w,h,frame_w,frame_h' of the crops: needed by a model trained with --boxes, "
                       "an error with any other model (it would not use them).")
 
@@ -45,7 +48,8 @@ def _views(boxes: Path | None, paths) -> np.ndarray | None:
 
 @pose_app.command("render")
 def render_cmd(
-    out: Path = typer.Argument(..., help="Output folder: crops/, labels.csv, frames/, boxes.csv."),
+    out: Path = typer.Argument(..., help="Output folder: crops/, labels.csv, keypoints.csv, frames/, boxes.csv, "
+                                         "rendering.json."),
     poses: int = typer.Option(4000, "--poses", help="Number of frames (poses) of the sequence."),
     seed: int = typer.Option(0, "--seed", help="Random seed; a seed always gives the same images."),
     dark: bool = typer.Option(False, "--dark", help="Render a low-light sequence."),
@@ -254,7 +258,7 @@ def eval_cmd(
     dark_images: Optional[Path] = typer.Option(None, "--dark-images", help="Crops of an unseen dark sequence."),
     dark_labels: Optional[Path] = typer.Option(None, "--dark-labels", help="Labels of the unseen dark sequence."),
     boxes: Optional[Path] = typer.Option(None, "--boxes", help=BOXES_HELP),
-    keypoints: Optional[Path] = typer.Option(None, "--keypoints", help=KEYPOINTS_HELP),
+    keypoints: Optional[Path] = typer.Option(None, "--keypoints", help=EVAL_KEYPOINTS_HELP),
     test_boxes: Optional[Path] = typer.Option(None, "--test-boxes", help="Boxes of the unseen normal-light sequence."),
     dark_boxes: Optional[Path] = typer.Option(None, "--dark-boxes", help="Boxes of the unseen dark sequence."),
     orientation: Optional[str] = typer.Option(None, "--orientation",

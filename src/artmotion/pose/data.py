@@ -154,7 +154,7 @@ def write_predictions(path: str | os.PathLike, images: Sequence[str], names: Seq
 
 
 BOX_COLUMNS = ["image", "x", "y", "w", "h", "frame_w", "frame_h"]
-#: how far outside its crop a keypoint may lie, in crop widths / heights (a jaw tip may leave the box)
+#: how far from its crop's corner a keypoint may lie, in crop widths / heights (a jaw tip may leave the box)
 MAX_KEYPOINT = 100.0
 
 
@@ -234,5 +234,5 @@ def read_keypoints(path: str | os.PathLike, images: Sequence[Path],
     far = np.flatnonzero(np.nanmax(np.abs(K), axis=1, initial=0.0) > MAX_KEYPOINT)
     if len(far):
         raise InputError(f"the keypoints of image {images[far[0]].name!r} lie more than {MAX_KEYPOINT:g} crop widths or "
-                         "heights outside the crop (pixels of the crop, not of the frame?)", path=path)
+                         "heights from the crop's corner (pixels of the crop, not of the frame?)", path=path)
     return names, K

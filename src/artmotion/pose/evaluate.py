@@ -17,7 +17,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.pose.filter import PoseFilter, accel_variance
-from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor
+from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor, check_keypoints
 from artmotion.pose.render import stem_direction
 
 
@@ -126,6 +126,10 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     training crops' keypoints (:meth:`PoseRegressor.fit`), for the ``cnn`` feature's training.
     """
     n = len(X)
+    keypoints = check_keypoints(keypoints, n)  # (sliced per fold below: checked whole first)
+    if views is not None and len(views) != n:
+        raise InputError(f"{n} rows but {len(views)} rows of views")
+    views = None if views is None else np.asarray(views, dtype=float)
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     least = least_examples(max(folds, 2))

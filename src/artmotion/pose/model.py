@@ -346,7 +346,7 @@ class PoseRegressor(BaseEstimator):
         self.pca_mean_ = self.pca_components_ = None
         self.net_ = self.readout_ = self.net_mu_ = self.net_sd_ = None
         V = self._check_views(views, len(X), fitting=True)
-        K = _check_keypoints(keypoints, len(X)) if self.feature == "cnn" else None
+        K = check_keypoints(keypoints, len(X)) if self.feature == "cnn" else None
         order, n_cal, frames = calibration_order(len(X), groups)
         self.accel_var_ = accel_variance(Y, frames=frames)
         self.filter_std_ = self.smooth_std_ = np.ones(Y.shape[1])
@@ -614,7 +614,7 @@ class PoseRegressor(BaseEstimator):
         return reg
 
 
-def _check_keypoints(keypoints, n: int) -> np.ndarray | None:
+def check_keypoints(keypoints, n: int) -> np.ndarray | None:
     """``keypoints`` of :meth:`PoseRegressor.fit` checked: ``(n, 2m)`` numbers, NaN where a point is
     not known (as a whole: x and y both), none infinite or far outside its crop."""
     if keypoints is None:
@@ -627,7 +627,7 @@ def _check_keypoints(keypoints, n: int) -> np.ndarray | None:
     if (np.isnan(K[:, 0::2]) != np.isnan(K[:, 1::2])).any():
         raise InputError("a keypoint has an x but no y, or a y but no x (NaN marks a point not known: both)")
     if np.nanmax(np.abs(K), initial=0.0) > MAX_KEYPOINT:
-        raise InputError(f"keypoints lie more than {MAX_KEYPOINT:g} crop widths or heights outside their crops "
+        raise InputError(f"keypoints lie more than {MAX_KEYPOINT:g} crop widths or heights from their crops' corners "
                          "(they are fractions of the crop's width and height: x / w, y / h)")
     return K
 

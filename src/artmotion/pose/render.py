@@ -262,7 +262,7 @@ def keypoints(pose: ToolPose) -> np.ndarray:
     R = pose.rotation()
     tip = pose.tip()
     pts = [tip, tip - R[:, 0] * CLEVIS_LEN]
-    for sign in (1.0, -1.0):  # the jaws' centre lines (:func:`_jaw_faces`) at their ends
+    for sign in (1.0, -1.0):  # the ends of the jaws' inner (gripping) edges (:func:`_jaw_faces`): closed, they meet
         half = math.radians(pose.opening) / 2 * sign
         pts.append(tip + R @ np.array([math.cos(half) * JAW_LEN, math.sin(half) * JAW_LEN, 0.0]))
     return project(np.array(pts))

@@ -176,10 +176,13 @@ def test_cli_trains_with_the_sets_keypoints(run_cli, tmp_path):
     model = tmp_path / "m.npz"
     code, out, err = run_cli("pose", "train", "--set", a, "--set", b, "--model", model, "--feature", "cnn",
                              "--steps", 10)
+    assert code == 0 and "keypoints" not in out, err    # off by default
+    code, out, err = run_cli("pose", "train", "--set", a, "--set", b, "--model", model, "--feature", "cnn",
+                             "--steps", 10, "--set-keypoints")
     assert code == 0 and "its network also finding 4 keypoints" in out, err
     (b / "keypoints.csv").unlink()        # a set without keypoints: its crops train the angles only
     code, out, err = run_cli("pose", "train", "--set", a, "--set", b, "--model", model, "--feature", "cnn",
-                             "--steps", 10)
+                             "--steps", 10, "--set-keypoints")
     assert code == 0 and "4 keypoints" in out, err
     code, out, err = run_cli("pose", "train", "--set", a, "--model", tmp_path / "h.npz")
     assert code == 0 and "keypoints" not in out, err   # hog: not read
@@ -187,9 +190,10 @@ def test_cli_trains_with_the_sets_keypoints(run_cli, tmp_path):
     shutil.copy(a / "keypoints.csv", other)
     other.write_text(other.read_text().replace("hinge_", "pivot_", 2))
     bad = {
-        (b / "crops", b / "labels.csv", "--keypoints", other, "--set", a, "--feature", "cnn"):
+        (b / "crops", b / "labels.csv", "--keypoints", other, "--set", a, "--feature", "cnn", "--set-keypoints"):
             "points hinge,clevis,jaw1,jaw2 differ from the first keypoints' pivot,clevis,jaw1,jaw2",
         (b / "crops", b / "labels.csv", "--keypoints", a / "keypoints.csv"): "--keypoints needs --feature cnn",
+        ("--set", a, "--set-keypoints"): "--set-keypoints needs --feature cnn",
         ("--keypoints", a / "keypoints.csv", "--set", a): "--keypoints goes with IMAGES",
     }
     code, out, err = run_cli("pose", "eval", a / "crops", a / "labels.csv", "--keypoints", a / "keypoints.csv")

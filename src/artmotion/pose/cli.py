@@ -79,8 +79,11 @@ def train_cmd(
     keypoints: Optional[Path] = typer.Option(None, "--keypoints", help=KEYPOINTS_HELP),
     sets: Optional[list[Path]] = typer.Option(None, "--set", help=(
         "A further training sequence: a folder as 'pose render' writes it (crops/, labels.csv and, for every set or "
-        "none, boxes.csv; keypoints.csv if it has one: only --feature cnn uses these two). Repeatable; the variance "
-        "is calibrated on the end of every sequence.")),
+        "none, boxes.csv: only --feature cnn uses it). Repeatable; the variance is calibrated on the end of every "
+        "sequence.")),
+    set_keypoints: bool = typer.Option(False, "--set-keypoints", help=(
+        "Also learn the keypoints of each --set folder's keypoints.csv (cnn only; a set without one trains the "
+        "angles only). Off by default: over six trainings a wash on average (docs/pose.md).")),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
     inducing: int = typer.Option(1000, "--inducing", help="Inducing points of the sparse GP."),
     inducing_var: int = typer.Option(250, "--inducing-var", help=(
@@ -110,7 +113,7 @@ def train_cmd(
         if not (d / "crops").is_dir() or not (d / "labels.csv").is_file():
             raise InputError("a training set is a folder with crops/ and labels.csv (pose render writes one)", path=d)
         bx, kp = (d / f if (d / f).is_file() else None for f in ("boxes.csv", "keypoints.csv"))
-        seqs.append((d / "crops", d / "labels.csv", bx, kp))
+        seqs.append((d / "crops", d / "labels.csv", bx, kp if set_keypoints else None))
     seen: set[Path] = set()
     for im, *_ in seqs:
         if im.resolve() in seen:
@@ -133,8 +136,9 @@ def train_cmd(
                         n_inducing_var=inducing_var or None)  # checks feature and method before any image is read
     if boxes is not None and feature != "cnn":
         raise InputError(f"--boxes needs --feature cnn (the {feature} feature does not use where a crop lies)")
-    if keypoints is not None and feature != "cnn":
-        raise InputError(f"--keypoints needs --feature cnn (the {feature} feature trains no network to find them)")
+    for option, asked in (("--keypoints", keypoints is not None), ("--set-keypoints", set_keypoints)):
+        if asked and feature != "cnn":
+            raise InputError(f"{option} needs --feature cnn (the {feature} feature trains no network to find them)")
     if steps is not None and feature != "cnn":
         raise InputError(f"--steps needs --feature cnn (the {feature} feature trains no network)")
     names: list[str] = []

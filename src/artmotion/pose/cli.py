@@ -107,7 +107,8 @@ def train_cmd(
         raise InputError("give the training crops: IMAGES LABELS.csv, or --set DIR (one or more)")
     for option, given in (("--boxes", boxes), ("--keypoints", keypoints)):
         if images is None and given is not None:
-            raise InputError(f"{option} goes with IMAGES (a --set folder has its own {option[2:]}.csv)")
+            raise InputError(f"{option} goes with IMAGES (a --set folder has its own {option[2:]}.csv"
+                             + (", read with --set-keypoints)" if option == "--keypoints" else ")"))
     seqs = [] if images is None or labels is None else [(images, labels, boxes, keypoints)]
     for d in sets or []:
         if not (d / "crops").is_dir() or not (d / "labels.csv").is_file():

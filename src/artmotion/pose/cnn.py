@@ -162,10 +162,11 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
     T = torch.from_numpy(((Y - mu) / sd).astype(np.float32))
     k = Y.shape[1]
     W = np.ones(k, np.float32) if weights is None else np.asarray(weights, np.float32)
-    P = known = None
+    P = mask = None
     if points is not None:
         known = np.isfinite(points)
         P = np.where(known, points, 0.0).astype(np.float32)
+        mask = torch.from_numpy(np.concatenate([np.ones((len(P), k), bool), known], 1))  # a row's known targets
         p_mu = np.array([P[known[:, j], j].mean() if known[:, j].any() else 0.0 for j in range(P.shape[1])], np.float32)
         p_sd = np.array([P[known[:, j], j].std() + 1e-6 if known[:, j].any() else 1.0 for j in range(P.shape[1])],
                         np.float32)
@@ -191,8 +192,9 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
             if len(order) < batch:  # epochs of shuffled crops
                 order += rng.permutation(len(crops)).tolist()
             idx, order = np.array(order[:batch]), order[batch:]
-            x, pts = augment(crops[idx], rng, None if P is None else P[idx]) if augmented else (
-                crops[idx], None if P is None else P[idx])
+            x, pts = crops[idx], None if P is None else P[idx]
+            if augmented:
+                x, pts = augment(x, rng, pts)
             yield idx, standardise(x), pts
 
     # the next mini-batches are augmented on another thread while the network trains on this one
@@ -204,14 +206,10 @@ def fit_net(crops: np.ndarray, Y: np.ndarray, steps: int = 3000, batch: int = 64
     try:
         for idx, xb, pts in prefetched(batches(), 2):
             x = torch.from_numpy(xb).contiguous(memory_format=torch.channels_last)
-            target, mask = T[idx], None
-            if pts is not None:
-                assert known is not None
-                target = torch.cat([target, torch.from_numpy((pts - p_mu) / p_sd)], 1)
-                mask = torch.from_numpy(np.concatenate([np.ones((len(idx), k), bool), known[idx]], 1))
+            target = T[idx] if pts is None else torch.cat([T[idx], torch.from_numpy((pts - p_mu) / p_sd)], 1)
             loss = nn.functional.smooth_l1_loss(net(x, None if E is None else E[idx]), target, beta=beta,
                                                 reduction="none") * W_t
-            loss = (loss if mask is None else loss * mask).sum(1).mean()
+            loss = (loss if mask is None else loss * mask[idx]).sum(1).mean()
             opt.zero_grad()
             loss.backward()
             opt.step()

@@ -262,9 +262,9 @@ def keypoints(pose: ToolPose) -> np.ndarray:
     R = pose.rotation()
     tip = pose.tip()
     pts = [tip, tip - R[:, 0] * CLEVIS_LEN]
-    for sign in (1.0, -1.0):  # the ends of the jaws' inner (gripping) edges (:func:`_jaw_faces`): closed, they meet
-        half = math.radians(pose.opening) / 2 * sign
-        pts.append(tip + R @ np.array([math.cos(half) * JAW_LEN, math.sin(half) * JAW_LEN, 0.0]))
+    for sign in (1.0, -1.0):  # the end of each jaw's inner (gripping) edge, as drawn: closed, they meet
+        corners, _ = _jaw_faces(tip, R, sign, pose.opening)
+        pts.append((corners[4] + corners[6]) / 2)  # the far end's two inner corners (u = JAW_LEN, ss = 0)
     return project(np.array(pts))
 
 

@@ -585,3 +585,19 @@ def test_a_file_output_given_with_a_slash_on_the_command_line_is_refused(tmp_pat
         atomic.SLASHED.clear()
     assert code == 2 and "p.png: ends with a slash" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_output_given_with_a_slash_is_written(tmp_path, run_cli):
+    """``--out result/`` (a folder, as tab completion types it) was refused as a file name ending
+    with a slash after the command's work: ``run``, ``articulation video``, ``pose render``."""
+    from artmotion.io import atomic
+    from artmotion.io.atomic import atomic_dir
+
+    with atomic_dir(f"{tmp_path}/made/") as tmp:
+        (tmp / "a.txt").write_text("x")
+    assert (tmp_path / "made" / "a.txt").read_text() == "x"
+    try:
+        code, _, err = run_cli("pose", "render", f"{tmp_path}/crops/", "--poses", 3, "--no-frames")
+    finally:
+        atomic.SLASHED.clear()
+    assert code == 0 and (tmp_path / "crops" / "labels.csv").is_file(), err

@@ -73,10 +73,11 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def _prepare(path: str | os.PathLike, made: list[Path]) -> Path:
+def _prepare(path: str | os.PathLike, made: list[Path], is_folder: bool = False) -> Path:
     """``path`` as a :class:`Path` whose folder exists; the folders created for it are appended to
-    ``made`` (outermost first), for :func:`_discard` to remove if the write fails."""
-    path = _through_link(_file_name(path))
+    ``made`` (outermost first), for :func:`_discard` to remove if the write fails. ``is_folder``: the
+    output is a folder (:func:`atomic_dir`), whose name may end with a slash."""
+    path = _through_link(Path(path) if is_folder else _file_name(path))
     error = _not_regular(path)
     if error is not None:
         raise error
@@ -356,7 +357,7 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
     path, swap, foreign = _plan_dir(path, replace, outputs)
     in_place = foreign or (swap and os.path.ismount(path))   # a mount point cannot be renamed
     folders: list[Path] = []         # the folders created to hold it
-    _prepare(path, folders)
+    _prepare(path, folders, is_folder=True)
     made: list[Path] = []            # the temporary folder
     kept: list[Path] = []            # where the earlier outputs wait while a swap renames
     swapped = False                  # the earlier outputs are out of ``path``

@@ -10,7 +10,7 @@ import pytest
 
 from artmotion.articulation.synthetic import part_video
 from artmotion.articulation.video import analyze_video
-from artmotion.articulation.video.joint import plane_rectifier
+from artmotion.articulation.video.joint import TEMPERATURE, classify_part, plane_rectifier
 from artmotion.articulation.video.segment import chain_affines, factorise_motion, moving_tracks, noise_level
 from artmotion.articulation.video.tracks import PointTracks, point_tracks
 from artmotion.errors import InputError
@@ -62,6 +62,17 @@ def test_a_handle_tip_turning_about_a_far_pivot_is_revolute(tmp_path):
     res = analyze_video(part_video(tmp_path / "swing.avi", "swing"))
     assert res.model == "revolute", res.to_dict()
     assert res.parts[0]["axis"]["towards_camera"]
+
+
+def test_a_video_tracks_samples_count_at_temperature_one(tmp_path):
+    """A KLT track's samples are scored as their effectively independent count (Algorithm 1's
+    temperature 1, not the logs' 0.25, under which a near-straight arc's evidence shrank to a near
+    tie): the far-pivot turn's prismatic alternative falls at least a hundredfold."""
+    res = analyze_video(part_video(tmp_path / "swing.avi", "swing", seed=1))
+    hot = classify_part(res.tracks, res.found[0])
+    cold = classify_part(res.tracks, res.found[0], temperature=0.25)
+    assert TEMPERATURE == 1.0 and hot["model"] == cold["model"] == "revolute"
+    assert hot["probabilities"]["prismatic"] < 0.01 * cold["probabilities"]["prismatic"], (hot, cold)
 
 
 def test_exposure_step_darkens_the_second_half_and_a_turn_stays_revolute(tmp_path):

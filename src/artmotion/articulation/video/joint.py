@@ -30,7 +30,15 @@ from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.geometry.affine import apply, invert
 
-__all__ = ["plane_rectifier", "lift_part", "classify_part"]
+__all__ = ["TEMPERATURE", "plane_rectifier", "lift_part", "classify_part"]
+
+#: Algorithm 1's temperature ``T`` for a video's lifted point tracks: each track's ``n`` samples
+#: count as ``T n / tau`` (``tau`` their residuals' autocorrelation time), so 1 is the plain count of
+#: effectively independent samples. The logs' 0.25 (calibrated on marker trajectories) left every
+#: point of the pliers' turning plate near a tie (a KLT track's smooth drift gives ``tau`` of 21-27
+#: frames: 221 samples weighed as 2). Within one case of the best of 0.25-4 on every
+#: leave-one-video-out fold (docs/articulation_video.md)
+TEMPERATURE = 1.0
 
 
 def _complete(B: np.ndarray, prev: np.ndarray | None) -> np.ndarray:
@@ -114,10 +122,13 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
 
 
 def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
-                  radius_range: tuple[float, float] | None = None, **choice) -> dict:
+                  radius_range: tuple[float, float] | None = None, temperature: float = TEMPERATURE,
+                  **choice) -> dict:
     """Joint of ``part`` relative to the static scene: the online model choice on the lifted track
     of every point of the part, pooled. ``radius_range`` (px) defaults to 2%-100% of the image
-    diagonal (a hinge's radius, as the logs' 5 cm-1 m).
+    diagonal (a hinge's radius, as the logs' 5 cm-1 m); ``temperature``: Algorithm 1's, see
+    :data:`TEMPERATURE`; ``choice``: the other options of
+    :class:`~artmotion.articulation.online.OnlineEstimator`.
 
     All the points of a rigid part follow one joint, but each lifted track is noisy in its own way
     (depth comes from the change of scale), and the answer of any single point — e.g. the one
@@ -132,7 +143,7 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     img = apply(part.A[used][:, None], _part_points(tracks, part)[None])
     span = np.linalg.norm(img - img[:1], axis=2).max(axis=0)   # each point's motion in the image
     w = span / max(float(span.sum()), 1e-12)
-    results = [estimate_online(P[:, k], used / tracks.fps, radius_range=radius_range, **choice)
+    results = [estimate_online(P[:, k], used / tracks.fps, radius_range=radius_range, temperature=temperature, **choice)
                for k in range(P.shape[1])]
     names = list(results[0].probabilities)
     probs = np.array([[res.probabilities.get(m, 0.0) for m in names] for res in results])

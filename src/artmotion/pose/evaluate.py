@@ -17,7 +17,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.pose.filter import PoseFilter, accel_variance
-from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor, check_keypoints
+from artmotion.pose.model import MIN_EXAMPLES, PoseRegressor, check_keypoints, check_views
 from artmotion.pose.render import stem_direction
 
 
@@ -127,9 +127,7 @@ def cross_validate(X: np.ndarray, Y: np.ndarray, names: Sequence[str], folds: in
     """
     n = len(X)
     keypoints = check_keypoints(keypoints, n)  # (sliced per fold below: checked whole first)
-    if views is not None and len(views) != n:
-        raise InputError(f"{n} rows but {len(views)} rows of views")
-    views = None if views is None else np.asarray(views, dtype=float)
+    views = None if views is None else check_views(views, n)
     if split not in ("contiguous", "random"):
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     least = least_examples(max(folds, 2))

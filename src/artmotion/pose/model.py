@@ -302,9 +302,7 @@ class PoseRegressor(BaseEstimator):
                 raise InputError("this pose model was trained with the boxes' places in their frames: "
                                  "give the boxes (--boxes) with the crops")
             return None
-        V = np.asarray(views, dtype=np.float32)
-        if V.shape != (n, F.VIEW_DIM) or not np.all(np.isfinite(V)):
-            raise InputError(f"views must be {n}x{F.VIEW_DIM} finite numbers (features.box_views), got {V.shape}")
+        V = check_views(views, n)
         return V if (self.feature == "cnn" if fitting else self.uses_views_) else None
 
     # -- training / prediction
@@ -612,6 +610,14 @@ class PoseRegressor(BaseEstimator):
         except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         return reg
+
+
+def check_views(views, n: int) -> np.ndarray:
+    """``views`` of ``n`` crops checked: ``(n, VIEW_DIM)`` finite numbers (:func:`features.box_views`)."""
+    V = np.asarray(views, dtype=np.float32)
+    if V.shape != (n, F.VIEW_DIM) or not np.all(np.isfinite(V)):
+        raise InputError(f"views must be {n}x{F.VIEW_DIM} finite numbers (features.box_views), got {V.shape}")
+    return V
 
 
 def check_keypoints(keypoints, n: int) -> np.ndarray | None:

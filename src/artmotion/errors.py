@@ -44,8 +44,10 @@ class Interrupted(BaseException):
 
 def one_line(message: str) -> str:
     """``message`` on one line: its non-blank lines stripped and joined by spaces (an error from a
-    library, e.g. GTSAM's indeterminate system, can run over several)."""
-    return " ".join(part.strip() for part in message.splitlines() if part.strip())
+    library, e.g. GTSAM's indeterminate system, can run over several); a file name's bytes that are
+    not UTF-8 (lone surrogates, which a strict stream refuses to print) written as ``\\udce9``."""
+    line = " ".join(part.strip() for part in message.splitlines() if part.strip())
+    return line.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 #: largest seed NumPy's legacy generators and scikit-learn accept (``[0, 2**32 - 1]``)

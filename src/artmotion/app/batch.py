@@ -20,7 +20,7 @@ from pathlib import Path
 from artmotion._native import signals_held
 from artmotion.app.pipeline import is_finished, load_run
 from artmotion.errors import ArtmotionError, InputError, Interrupted, one_line
-from artmotion.io import check_apart
+from artmotion.io import check_apart, check_text
 from artmotion.io.atomic import check_can_create_in
 from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS, depth_note
 
@@ -38,6 +38,11 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]]]:
     items, others = [], []
     for p in sorted(root.iterdir()):
         if p.name.startswith("."):
+            continue
+        try:
+            check_text(p, "the workers are sent it as text")
+        except InputError as exc:
+            others.append((p, exc.reason))
             continue
         if p.is_dir():
             try:
@@ -322,6 +327,8 @@ def run_batch(
         _check_scheduler(scheduler)
     t0 = time.perf_counter()
     out = Path(out) if out is not None else Path(root) / "artmotion-runs"
+    for path in (Path(root).resolve(), out.resolve()):
+        check_text(path, "the workers are sent it as text")
     if os.path.lexists(out) and not out.is_dir():  # one error now, not one per item later
         raise InputError("is not a folder: the batch writes a run folder per item in it", path=out)
     items, others = scan(root)

@@ -99,6 +99,11 @@ def run_cmd(
     from artmotion.tracking.api import too_short
 
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
+    if db is not None:
+        from artmotion.io import check_text
+
+        for path in (source.resolve(), *(() if out is None else (out.resolve(),))):
+            check_text(path)
     if db is not None and out is not None and Path(os.path.realpath(out)) in Path(os.path.realpath(db)).parents:
         # the next run into --out replaces the folder whole, or refuses a folder holding other files
         raise InputError("is inside the run folder --out: keep the index outside it (next to it)", path=db)
@@ -180,7 +185,10 @@ def search_cmd(
 ):
     """Find the moments that match a query, best first."""
     from artmotion.app.index import EventIndex
+    from artmotion.io import check_text
 
+    if video is not None:
+        check_text(video, "--video", "no video in the index is named so")
     with EventIndex(_db_path(db, must_exist=True), write=False) as idx:
         hits = idx.search(query, video=video, limit=limit)
         shared = idx.shared_names()

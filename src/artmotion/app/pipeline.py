@@ -31,7 +31,7 @@ from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
 from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.events import event_problem
-from artmotion.io.media import MAX_FPS, MIN_FPS
+from artmotion.io.media import MAX_FPS, MIN_FPS, cv2_name
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 from artmotion.tracking.config import DETECT_EVERY
 
@@ -223,6 +223,8 @@ def run_pipeline(
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     check_apart(out, (seq.folder,))
     check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
+    if video:
+        cv2_name(out)       # (OpenCV writes annotated.mp4 in it)
     # a new run folder (or a new run replacing an earlier one) appears only when it is complete
     with atomic_dir(out, replace=_is_run, outputs=RUN_FILES) as dst:
         if tools is not None:
@@ -458,11 +460,11 @@ def _manifest_problem(run) -> str | None:
             name in CHECKED_FILES and isinstance(d, str) and len(d) == 64 for name, d in digests.items())):
         return f"'sha256' is not an object of SHA-256 digests of {', '.join(CHECKED_FILES)}"
     seq = run.get("sequence", {})
-    ranges = {"length": (1, MAX_FRAME), "fps": (MIN_FPS, MAX_FPS), "width": (1, MAX_COORD), "height": (1, MAX_COORD)}
-    if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_number(seq[k], *r) for k, r in ranges.items()) \
-            or seq.get("bits") is not None and not _is_int(seq["bits"], 1, 16):
-        return ("'sequence' is not an object of numbers in range (length in [1, 10000000], fps in [0.001, 1000], "
-                "width and height in [1, 1e6], bits in [1, 16])")
+    counts = {"length": (1, MAX_FRAME), "width": (1, int(MAX_COORD)), "height": (1, int(MAX_COORD)), "bits": (1, 16)}
+    if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_int(seq[k], *r) for k, r in counts.items()) \
+            or seq.get("fps") is not None and not _is_number(seq["fps"], MIN_FPS, MAX_FPS):
+        return ("'sequence' is not an object of numbers in range (whole numbers: length in [1, 10000000], width "
+                "and height in [1, 1e6], bits in [1, 16]; fps in [0.001, 1000])")
     if not isinstance(run["track_summary"], list) or not all(
             isinstance(t, dict) and _is_int(t.get("id")) and all(_is_frame(t.get(k)) for k in ("first_frame", "last_frame"))
             and _is_int(t.get("boxes"), 0, MAX_FRAME) for t in run["track_summary"]):
@@ -489,7 +491,7 @@ def _manifest_problem(run) -> str | None:
 def _consistency_problem(run: dict) -> str | None:
     """What in a manifest of the right types contradicts itself, or ``None``: a track id twice, a
     track that ends before it begins, has more boxes than frames or ends after the sequence, a
-    sentence that ends before it begins, an event or sentence naming a track that is not there,
+    sentence that ends before it begins or after the sequence, an event or sentence naming a track that is not there,
     text that is not Unicode (a lone surrogate, which SQLite cannot store)."""
     length = run.get("sequence", {}).get("length")
     ids: set[int] = set()
@@ -510,6 +512,8 @@ def _consistency_problem(run: dict) -> str | None:
             if what == "sentences" and None not in (x.get("frame_start"), x.get("frame_end")) \
                     and x["frame_start"] > x["frame_end"]:
                 return f"'sentences' item {k} ends (frame {x['frame_end']}) before it begins ({x['frame_start']})"
+            if what == "sentences" and length is not None and max(x.get("frame_start") or 0, x.get("frame_end") or 0) > length:
+                return f"'sentences' item {k} goes past the sequence's {length} frames"
     try:
         json.dumps(run, ensure_ascii=False).encode("utf-8")
     except UnicodeEncodeError:
@@ -535,14 +539,28 @@ def source_fingerprint(seq) -> str:
     return h.hexdigest()[:16]
 
 
+def _folder_name(name: str, fallback: str) -> str:
+    """``name`` if it is one plain path component (a sequence's name comes from its
+    ``seqinfo.ini``, which must not choose where outputs land: ``../x``, ``/x``, ``.`` or nothing
+    would put them outside ``runs/`` or make ``runs/`` itself the run); else ``fallback``."""
+    seps = {os.sep, os.altsep or os.sep, "/"}
+    if name in ("", ".", "..") or "\0" in name or any(c in name for c in seps):
+        return fallback
+    return name
+
+
 def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> Path:
     """``runs/NAME``, unless it holds the run of another source (another video called the same,
-    e.g. every day's ``cam1.mp4``): then ``runs/NAME-<fingerprint>``, so no run replaces another's."""
-    out = Path(root) / seq.name
+    e.g. every day's ``cam1.mp4``): then ``runs/NAME-<fingerprint>``, so no run replaces another's.
+    A name that is not one plain path component (:func:`_folder_name`) gives way to the source's
+    own file or folder name."""
+    own = Path(seq.path).resolve()
+    name = _folder_name(seq.name, _folder_name(own.stem if own.is_file() else own.name, "run"))
+    out = Path(root) / name
     try:
         prev = json.loads((out / MANIFEST).read_text(encoding="utf-8")) if (out / MANIFEST).is_file() else None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         prev = None
     same = prev is None or (prev.get("fingerprint") == fingerprint
                             and prev.get("source") == str(Path(seq.path).resolve()))
-    return out if same else Path(root) / f"{seq.name}-{fingerprint[:8]}"
+    return out if same else Path(root) / f"{name}-{fingerprint[:8]}"

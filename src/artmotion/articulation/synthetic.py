@@ -142,6 +142,7 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     import cv2
 
     from artmotion.io.atomic import atomic_path
+    from artmotion.io.media import cv2_name
 
     if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing"):
         raise ValueError(f"unknown motion {motion!r}")
@@ -189,7 +190,7 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
 
     rest = frames // 6
     with atomic_path(path) as tmp:
-        out = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
+        out = cv2.VideoWriter(cv2_name(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
         for f in range(frames):
             q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
             q = 0.5 - 0.5 * np.cos(np.pi * q)

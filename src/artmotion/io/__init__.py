@@ -1,6 +1,6 @@
 """File formats and safe writing (MOTChallenge text, event JSON lines, atomic output)."""
 
-from artmotion.io.atomic import atomic_dir, atomic_path, atomic_write, check_apart, check_writable, save_figure
+from artmotion.io.atomic import atomic_dir, atomic_path, atomic_write, check_apart, check_text, check_writable, save_figure
 from artmotion.io.events import read_events, write_events
 from artmotion.io.mot import MOT_COLUMNS, read_mot, write_mot
 
@@ -10,6 +10,7 @@ __all__ = [
     "atomic_path",
     "atomic_write",
     "check_apart",
+    "check_text",
     "check_writable",
     "read_events",
     "read_mot",

@@ -126,6 +126,16 @@ def check_apart(path: str | os.PathLike | None, inputs: Iterable[str | os.PathLi
             raise InputError(f"is inside the input folder {q}: write the output elsewhere", path=path)
 
 
+def check_text(path: str | os.PathLike, why: str = "an index keeps paths as text", fix: str = "rename it") -> None:
+    """An :class:`InputError` naming ``path`` when it holds bytes that are not UTF-8 (read by Python as
+    lone surrogates): such a name cannot be stored as text (``why``), so the work that would need it
+    is refused before it starts rather than after; ``fix``: what to do about it."""
+    try:
+        os.fsdecode(path).encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError(f"the name holds bytes that are not UTF-8 text ({why}): {fix}", path=path) from None
+
+
 def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.PathLike | None] = ()) -> None:
     """Before long work: an :class:`InputError` naming the first output ``path`` (``None``s are
     skipped) that cannot be written — an existing folder where a file goes, a device or pipe, a

@@ -47,10 +47,11 @@ from typing import Literal
 import numpy as np
 
 from artmotion.errors import InputError
+from artmotion.io.atomic import check_text
 from artmotion.io.files import check_riff_size, read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
-           "depth_note", "ffmpeg_quiet", "frame_depth", "image_problem", "open_capture", "read_frame", "read_image",
+           "cv2_name", "depth_note", "ffmpeg_quiet", "frame_depth", "image_problem", "open_capture", "read_frame", "read_image",
            "read_video_frame", "write_image"]
 
 IMAGE_EXTS = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm"})
@@ -556,6 +557,14 @@ def _video_captured():
     return _stderr_captured(() if os.environ.get("ARTMOTION_DEBUG") else _CONTAINER)
 
 
+def cv2_name(path: str | os.PathLike) -> str:
+    """``path`` as the string OpenCV is given to open or write: an :class:`InputError` naming it
+    when it is not UTF-8 text (OpenCV crashes the process on a name with bytes that are not UTF-8,
+    which Python reads as lone surrogates)."""
+    check_text(path, "OpenCV cannot open it")
+    return os.fspath(path)
+
+
 def open_capture(path: str | os.PathLike):
     """``cv2.VideoCapture(path)``, its container parser's messages kept off stderr (a damaged AVI
     prints "Unexpected element. Expected: LIST. Got: JUNK."; the caller reports it as one error),
@@ -567,12 +576,13 @@ def open_capture(path: str | os.PathLike):
     :class:`InputError` naming ``path``."""
     import cv2
 
+    name = cv2_name(path)
     _ffmpeg_logs_on_stderr()
     with _video_captured() as said:
-        cap = cv2.VideoCapture(os.fspath(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
+        cap = cv2.VideoCapture(name, cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
         ffmpeg = cap.isOpened()
         if not ffmpeg:                           # (a file FFmpeg cannot read: OpenCV's own readers)
-            cap = cv2.VideoCapture(os.fspath(path))
+            cap = cv2.VideoCapture(name)
     damage = _opening_damage(said) if ffmpeg else None
     if damage is not None:
         cap.release()

@@ -181,6 +181,10 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     elif not isinstance(detector, Detector):
         raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
     check_range("--detect-every", detect_every, 1, 100, integer=True)
+    if video is not None:
+        from artmotion.io.media import cv2_name
+
+        cv2_name(video)         # (before the work: OpenCV writes the video)
     seq = open_sequence(source)
     seq.set_fps(fps, "frame rate")
     seq.set_bits(bits, "bits")

@@ -11,7 +11,7 @@ import numpy as np
 from artmotion.errors import InputError
 from artmotion.geometry import box_center
 from artmotion.io import atomic_path
-from artmotion.io.media import check_written_video, ffmpeg_quiet
+from artmotion.io.media import check_written_video, cv2_name, ffmpeg_quiet
 
 __all__ = ["colour_of", "draw_boxes", "write_annotated"]
 
@@ -52,7 +52,7 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
         # the stubs lack OpenCV's module-level alias of VideoWriter.fourcc
         fourcc = cv2.VideoWriter_fourcc(*"mp4v")  # type: ignore[attr-defined]
         with ffmpeg_quiet():
-            writer = cv2.VideoWriter(str(tmp), fourcc, float(fps or 25.0), (w, h))
+            writer = cv2.VideoWriter(cv2_name(tmp), fourcc, float(fps or 25.0), (w, h))
         if not writer.isOpened():
             raise InputError("cannot open a video writer (mp4v)", path=path)
         written = 0

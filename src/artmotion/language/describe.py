@@ -609,8 +609,13 @@ def describe(
     if image_size is not None:
         check_image_size(tracks, image_size)
     default_cls, per_track = _check_classes(classes)
-    if not isinstance(pose_subject, str):
-        raise InputError(f"pose_subject must be text (a class name), got {pose_subject!r}")
+    try:
+        subject = _class_word(pose_subject) if isinstance(pose_subject, str) else None
+    except ValueError:
+        subject = None
+    if subject is None:
+        raise InputError(f"pose_subject must be a class name (letters, spaces and hyphens), got {pose_subject!r}")
+    pose_subject = subject
     if pose_track is not None:
         pose_track = check_range("pose_track", pose_track, -MAX_ID, MAX_ID, integer=True)
     if pose is not None:

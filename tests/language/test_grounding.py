@@ -233,3 +233,34 @@ def test_unseen_pair_test_names_the_dataset_and_plain_labels(tmp_path):
     full = [(c, s) for c in ds.COLORS for s in ds.SHAPES] * 2
     rounds = holdout_rounds([c for c, _ in full], [s for _, s in full], HOLDOUTS)
     assert len(rounds) == len(HOLDOUTS) and all(held.sum() == 2 * len(p) for p, held in rounds)
+
+
+@needs_espeak
+def test_eval_and_dataset_never_remove_the_users_files(small_dataset, tmp_path, run_cli):
+    """An earlier report is replaced only when its folder holds its outputs alone (a PNG of the
+    user's there went with it on the second run), never inside the dataset; a dataset in the same
+    layout that this command did not make (a user's recordings) is never replaced."""
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / "my_plot.png").write_bytes(b"theirs")
+    assert run_cli("grounding", "eval", small_dataset, "--out", figs)[0] == 0
+    code, _, err = run_cli("grounding", "eval", small_dataset, "--out", figs)
+    assert code == 2 and err.count("\n") == 1 and (figs / "my_plot.png").read_bytes() == b"theirs", err
+    images = sorted(p.name for p in (small_dataset / "images").iterdir())
+    code, _, err = run_cli("grounding", "eval", small_dataset, "--out", small_dataset / "images")
+    assert code == 2 and "inside the input folder" in err, err
+    assert sorted(p.name for p in (small_dataset / "images").iterdir()) == images
+    mine = tmp_path / "mine"
+    for sub in ("images", "speech"):
+        (mine / sub).mkdir(parents=True)
+    (mine / "images" / "my_recording.png").write_bytes(b"theirs")
+    (mine / "speech" / "my_voice.wav").write_bytes(b"theirs")
+    (mine / "index.csv").write_text("id,image\n")
+    code, _, err = run_cli("grounding", "dataset", mine)
+    assert code == 2 and err.count("\n") == 1, err
+    assert (mine / "images" / "my_recording.png").read_bytes() == b"theirs"
+    assert (mine / "speech" / "my_voice.wav").read_bytes() == b"theirs"
+    again = tmp_path / "again"                  # a dataset it made is made anew in place
+    for _ in range(2):
+        ds.make_dataset(again, seed=5, table={"circle": (1, 0, 1, 0)})
+    assert json.loads((again / ds.MARKER).read_text())["examples"] == 2

@@ -386,3 +386,30 @@ def test_too_few_crops_for_the_folds_is_refused_with_the_real_minimum(small, run
         shutil.copy(src, crops / src.name)
     code, _, err = run_cli("pose", "eval", crops, labels, "--feature", "hog", "--folds", folds)
     assert code == 0, err
+
+
+def test_eval_never_replaces_a_folder_of_the_users_files(split, tmp_path, run_cli):
+    """Only a folder of an earlier evaluation's own outputs (by their names) is replaced: a labels
+    file kept in --out (an input) and any other CSV of the user's stay, on a second run too."""
+    args = ("pose", "eval", split / "train", None, "--feature", "hog", "--folds", 2, "--out")
+    exp = tmp_path / "exp"
+    exp.mkdir()
+    shutil.copy(split / "train.csv", exp / "labels.csv")
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "eval.json").write_text('{"experiment": "mine"}')
+    (theirs / "measurements.csv").write_text("a,b\n")
+    for labels, out, first in ((exp / "labels.csv", exp, 0), (split / "train.csv", theirs, 2)):
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        a = list(args)
+        a[3] = labels
+        code, _, err = run_cli(*a, out)
+        assert code == first, err
+        code, _, err = run_cli(*a, out)          # again: the folder is not its own
+        assert code == 2 and "exists" in err and err.count("\n") == 1, err
+        assert all((out / n).read_bytes() == b for n, b in before.items())
+    ours = tmp_path / "ours"                     # its own earlier outputs are replaced
+    for _ in range(2):
+        code, _, err = run_cli("pose", "eval", split / "train", split / "train.csv", "--feature", "hog", "--folds", 2,
+                               "--out", ours)
+        assert code == 0, err

@@ -282,7 +282,7 @@ def eval_cmd(
         raise InputError(f"unknown split {split!r}; choose contiguous or random")
     check_range("--folds", folds, 2, 1000, integer=True)
     from artmotion.io import check_apart
-    from artmotion.io.atomic import check_out_dir, outputs_of
+    from artmotion.io.atomic import check_out_dir
 
     check_apart(out, (images, test_images, dark_images))
     regs = {f: PoseRegressor(feature=f, method=method) for f in feature}  # checks names before reading images
@@ -294,7 +294,7 @@ def eval_cmd(
     # holds one of them was refused only once the evaluation was done)
     sets = ["cv"] + [key for key, given in (("test", test_images), ("dark", dark_images)) if given is not None]
     outputs = ["eval.md", "eval.json"] + [f"{s}_{f}{kind}.csv" for s in sets for f in feature for kind in ("", "_filtered")]
-    earlier = outputs_of("eval.json", r"eval\.md|\w+\.csv")    # an earlier evaluation is replaced
+    earlier = _earlier_evaluation       # an earlier evaluation is replaced
     if out is not None:
         check_out_dir(out, replace=earlier, outputs=outputs)
     names, paths, imgs, Y = load_labelled(images, labels, progress=True)
@@ -355,6 +355,24 @@ def eval_cmd(
             with atomic_write(dst / "eval.json") as fh:
                 json.dump(results, fh, indent=1)
     typer.echo(table)
+
+
+def _earlier_evaluation(folder: Path) -> bool:
+    """Whether ``folder`` holds the outputs of an earlier ``pose eval`` and nothing else (it is then
+    replaced whole): its eval.json (an object of results per feature), eval.md and prediction
+    tables by their names — not any CSV (a labels file kept there, an input, went with it)."""
+    from artmotion.io.atomic import outputs_of
+    from artmotion.pose.features import FEATURES
+
+    names = {"eval.md"} | {f"{s}_{f}{kind}.csv" for s in ("cv", "test", "dark") for f in FEATURES
+                           for kind in ("", "_filtered")}
+    if not outputs_of("eval.json", names)(folder):
+        return False
+    try:
+        data = json.loads((folder / "eval.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    return isinstance(data, dict) and bool(data) and set(data) <= set(FEATURES)
 
 
 _UNSEEN_TITLES = {"test": "Unseen normal-light sequence", "dark": "Unseen dark sequence"}

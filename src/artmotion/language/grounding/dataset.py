@@ -10,6 +10,7 @@ computed by :mod:`artmotion.language.grounding.features`.
 from __future__ import annotations
 
 import csv
+import json
 import os
 import shutil
 import subprocess
@@ -20,6 +21,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_seed
 from artmotion.io import atomic_dir, atomic_path, atomic_write
+from artmotion.io.atomic import outputs_of
 from artmotion.io.media import write_image
 from artmotion.io.table import cell_number, read_csv
 
@@ -163,12 +165,19 @@ def speak(text: str, path: str | os.PathLike, speed: int, exe: str | None = None
         tmp.write_bytes(wav)
 
 
+#: the file that marks a folder as a dataset this command made (what it was made from)
+MARKER = "dataset.json"
 #: what a dataset folder holds
-DATASET = frozenset({"images", "speech", "index.csv"})
+DATASET = frozenset({"images", "speech", "index.csv", MARKER})
+#: an earlier dataset of this command, and nothing else: it is then replaced whole. The marker is
+#: what tells it from a dataset of the user's own recordings in the same layout (images/, speech/,
+#: index.csv: what ``grounding eval`` reads), which is never replaced
+_is_dataset = outputs_of(MARKER, DATASET, ("seed", "examples"))
 
 
 def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = None) -> Path:
-    """Write the 156 examples under ``out`` (images/, speech/, index.csv); return the index path.
+    """Write the 156 examples under ``out`` (images/, speech/, index.csv, and dataset.json, which
+    says it was made here); return the index path.
 
     ``table`` (shape -> counts per colour in :data:`COLORS` order) replaces Table 5.2, e.g. for a
     smaller test set.
@@ -177,18 +186,15 @@ def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = Non
     exe = espeak_path()
     out = Path(out)
     with atomic_dir(out, replace=_is_dataset, outputs=DATASET) as tmp:
-        _write_examples(tmp, seed, table, exe)
+        examples = _write_examples(tmp, seed, table, exe)
+        with atomic_write(tmp / MARKER) as fh:
+            json.dump({"made_by": "artmotion grounding dataset", "seed": seed, "examples": examples}, fh)
     index = out / "index.csv"
     return index
 
 
-def _is_dataset(folder: Path) -> bool:
-    """Whether ``folder`` holds an earlier dataset and nothing else (it is then replaced whole): all
-    three of its entries (a lone index.csv may be a user's own)."""
-    return {p.name for p in folder.iterdir()} == DATASET
-
-
-def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> None:
+def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> int:
+    """The examples' images, speech and index.csv in ``out``; how many."""
     rng = np.random.default_rng(seed)
     items = [(c, s) for c, s, n in counts(table) for _ in range(n)]
     order = rng.permutation(len(items))
@@ -216,6 +222,7 @@ def _write_examples(out: Path, seed: int, table: dict | None, exe: str) -> None:
         w = csv.DictWriter(fh, fieldnames=INDEX_COLUMNS, lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
+    return len(rows)
 
 
 def read_index(dataset: str | os.PathLike) -> list[dict]:

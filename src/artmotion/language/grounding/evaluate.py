@@ -28,7 +28,7 @@ from sklearn.model_selection import KFold
 
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, save_figure
-from artmotion.io.atomic import check_out_dir, outputs_of
+from artmotion.io.atomic import check_apart, check_out_dir, outputs_of
 from artmotion.io.media import read_image
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
@@ -40,6 +40,14 @@ HOLDOUTS = (
     (("blue", "triangle"), ("green", "circle"), ("red", "halfcircle"), ("yellow", "square")),
     (("blue", "square"), ("green", "triangle"), ("red", "rectangle"), ("yellow", "circle")),
 )
+
+
+def input_folders(dataset: str | os.PathLike) -> set[Path]:
+    """The folders that hold the images and speech of ``DATASET/index.csv`` (an output written in
+    one of them would become an input, or replace the folder with them)."""
+    dataset = Path(dataset)
+    base = dataset if dataset.is_dir() else dataset.parent
+    return {(base / r[c]).parent for r in read_index(dataset) for c in ("image", "speech", "speech_color", "speech_shape")}
 
 
 def load_features(dataset: str | os.PathLike, progress=None) -> dict:
@@ -303,9 +311,12 @@ def save_figures(report: dict, F: dict, out: Path) -> list[str]:
 def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *, seed: int = 0,
              features: dict | None = None, holdouts=HOLDOUTS, figures: bool = True) -> dict:
     """Run both evaluations; write ``report.json`` and PNGs under ``out`` (if given)."""
-    earlier = outputs_of("report.json", r"\w+\.png", ("linking", "holdouts"))   # an earlier report is replaced
+    # an earlier report is replaced: a folder of its outputs by name (any PNG of the user's there
+    # keeps the folder theirs), never a folder holding the dataset's images or speech
+    earlier = outputs_of("report.json", FIGURES, ("linking", "holdouts"))
     outputs = ("report.json",) + (FIGURES if figures else ())
     if out is not None:
+        check_apart(out, input_folders(dataset))
         check_out_dir(out, replace=earlier, outputs=outputs)     # before the work, not after it
     t0 = time.perf_counter()
     F = features if features is not None else load_features(dataset)

@@ -201,3 +201,18 @@ def test_the_command_line_refuses_a_misspelt_name_before_it_reads_an_image(tmp_p
     code, _, err = run_cli("pose", "train", tmp_path / "crops", tmp_path / "labels.csv", *option,
                            "--model", tmp_path / "m.npz")
     assert code == 2 and f"unknown {option[0][2:]} '{option[1]}'" in err and "a.png" not in err
+
+
+def test_a_model_whose_angles_are_not_numbers_is_named_not_written(rendered, tmp_path):
+    """Numbers that pass load's checks can still give NaN (a length scale of 1e-30 underflows every
+    kernel row): predict names the model file instead of returning NaN angles as measured."""
+    imgs, Y = rendered
+    PoseRegressor(feature="hog").fit(imgs, Y).save(tmp_path / "m.npz")
+    with np.load(tmp_path / "m.npz") as z:
+        d = dict(z)
+    d["hypers"][:, 0] = 1e-30
+    np.savez(tmp_path / "bad.npz", **d)
+    bad = PoseRegressor.load(tmp_path / "bad.npz")   # (its test prediction passes)
+    with pytest.raises(InputError, match="damaged pose model") as err:
+        bad.predict(imgs, return_std=True)
+    assert err.value.path == str(tmp_path / "bad.npz")

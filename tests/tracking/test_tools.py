@@ -485,3 +485,27 @@ def test_loading_a_model_with_a_negative_variance(tmp_path):
     torch.save(state, bad)
     with pytest.raises(InputError, match="damaged tool model .a negative batch-normalisation variance"):
         ToolDetector.load(bad)
+
+
+def test_a_model_whose_output_is_not_finite_is_named(tmp_path):
+    """Finite weights can still overflow (every weight scaled by 1e15): detect names the model file
+    instead of finding no head, which `tool track` said as "0 heads" and exit 0."""
+    import torch
+
+    from artmotion.tracking.instruments import net
+
+    det = ToolDetector()
+    det.model_, det.frame_shape_, det.max_heads_ = net.HeadNet(det.width), (48, 64), 4
+    good = tmp_path / "good.pt"
+    det.save(good)
+    state = torch.load(good, weights_only=True)
+    for k, t in state["weights"].items():
+        if t.is_floating_point() and "running_" not in k:
+            state["weights"][k] = t * 1e15
+    bad = tmp_path / "bad.pt"
+    torch.save(state, bad)
+    frame = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
+    assert len(ToolDetector.load(good).detect(frame)) <= 4
+    with pytest.raises(InputError, match="damaged tool model: its output") as err:
+        ToolDetector.load(bad).detect(frame)
+    assert err.value.path == str(bad)

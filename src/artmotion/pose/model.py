@@ -176,6 +176,7 @@ class PoseRegressor(BaseEstimator):
     net_mu_: np.ndarray | None = None
     net_sd_: np.ndarray | None = None
     names_: list[str] | None = None
+    source_: Path | None = None  # the file a loaded model came from (named by predict's errors)
     gp_: ExactGP | SparseGP | None = None
     accel_var_: np.ndarray | None = None
     #: multipliers of the filter's and the smoother's standard deviations (:func:`tune_filter`)
@@ -456,6 +457,11 @@ class PoseRegressor(BaseEstimator):
         std = np.concatenate([p[1] for p in parts]) if parts else np.empty((0, k))
         if self.net_ is not None and self.readout_ is not None and self.readout_.any() and len(mean):
             mean[:, self.readout_] = self._readout(images)[:, self.readout_]
+        if not (np.isfinite(mean).all() and np.isfinite(std).all()):
+            # a model whose numbers pass load's checks can still give NaN on some crops (a length
+            # scale of 1e-30 underflows every kernel row): not angles to write as if measured
+            raise InputError("damaged pose model: its angles for some crops are not finite numbers",
+                             path=self.source_)
         return (mean, std) if return_std else mean
 
     def _readout(self, F: np.ndarray) -> np.ndarray:
@@ -609,6 +615,7 @@ class PoseRegressor(BaseEstimator):
             raise InputError(f"corrupt artmotion pose model: {exc.reason}", path=path) from None
         except (KeyError, ValueError, TypeError, IndexError, OverflowError, np.linalg.LinAlgError) as exc:
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
+        reg.source_ = path      # (named by predict's error should the model give what is not a number)
         return reg
 
 

@@ -105,8 +105,11 @@ class ToolDetector:
     ``left_out_``: after :meth:`detect_batch`, the score of the best peak the cap left out on each
     of its frames (0 where none), so that a caller can say when the cap dropped a likely head.
     ``grey_``: whether every training frame was grey (:func:`is_grey`; None for a model saved
-    before it was kept), so that a caller can say when frames are unlike them.
+    before it was kept), so that a caller can say when frames are unlike them. ``source_``: the
+    file a loaded model came from (named when its output is not finite).
     """
+
+    source_: Path | None = None
 
     def __init__(self, epochs: int = 30, batch: int = 8, lr: float = 3e-3, threshold: float = 0.05,
                  max_heads: int | None = None, width: int = 32, seed: int = 0):
@@ -222,6 +225,11 @@ class ToolDetector:
             fx, fy = size[0] / w, size[1] / h
         with torch.inference_mode():
             maps = self.model_(net.to_tensor(list(frames))).numpy()
+        if not np.isfinite(maps).all():
+            # finite weights can still overflow (weights scaled by 1e15): no head found would be
+            # said as if nothing were in view
+            raise InputError("damaged tool model: its output on these frames is not finite",
+                             path=self.source_)
         peaks = [net.decode(m, self.threshold, self.max_heads_ + 1) for m in maps]
         self.left_out_ = np.array([d[self.max_heads_, 4] if len(d) > self.max_heads_ else 0.0 for d in peaks])
         out = [d[:self.max_heads_] for d in peaks]
@@ -289,6 +297,7 @@ class ToolDetector:
             raise InputError("damaged tool model (a negative batch-normalisation variance)", path=p)
         model.eval()
         det.model_ = model
+        det.source_ = p     # (named by detect's error should the network give what is not a number)
         return det
 
 

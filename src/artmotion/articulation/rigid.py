@@ -327,6 +327,15 @@ def classify_points(tracks: np.ndarray, noise: float = 0.005, method: str = "aut
     return out
 
 
+def same_side(quats: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(F, 4)``, each turned to the side of the one before (``q`` and ``-q`` are
+    one rotation; a log that flips the sign would read as the rounding of values 2 apart)."""
+    if len(quats) < 2:
+        return quats
+    flips = np.concatenate([[False], np.einsum("ij,ij->i", quats[1:], quats[:-1]) < 0])
+    return quats * np.where(np.cumsum(flips) % 2, -1.0, 1.0)[:, None]
+
+
 def pose_noise(positions: np.ndarray, quats: np.ndarray) -> tuple[float, float]:
     """The noise of a pose track, estimated from the track: positional (length) and angular
     (radians) std, from the second differences of the positions and of the orientation (the step
@@ -341,7 +350,7 @@ def pose_noise(positions: np.ndarray, quats: np.ndarray) -> tuple[float, float]:
     from artmotion.articulation.online import precision_floor, rounding_std
 
     t = np.asarray(positions, dtype=float)
-    q = np.asarray(quats, dtype=float)
+    q = same_side(np.asarray(quats, dtype=float))
     floors = (precision_floor(t), max(rounding_std(q), 1e-9))
     if len(t) < 3:
         return floors

@@ -505,6 +505,13 @@ def test_an_output_named_by_a_link_is_written_through_it(tmp_path):
         with pytest.raises(InputError, match="a link to a stream of the process"):
             call()
     assert stream.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["latest.csv", "out.csv", "target.csv"]
+    loop, back = tmp_path / "loop1", tmp_path / "loop2"      # a loop of links: refused, the links kept
+    loop.symlink_to(back)
+    back.symlink_to(loop)
+    for call in (lambda: check_writable(loop), lambda: atomic_write(loop).__enter__()):
+        with pytest.raises(InputError, match="a link that loops"):
+            call()
+    assert loop.is_symlink() and back.is_symlink()
 
 
 def test_a_file_output_ending_with_a_slash_is_refused(tmp_path):

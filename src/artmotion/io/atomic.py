@@ -56,6 +56,12 @@ def _through_link(path: Path) -> Path:
     of the process, a device) is refused: its target is no file to replace."""
     if not path.is_symlink():
         return path
+    try:
+        os.stat(path)
+    except OSError as exc:      # (a link to no file is written through: its target is made)
+        if exc.errno == errno.ELOOP:
+            raise InputError("is a link that loops (to itself, through other links): give the name of a file to "
+                             "write", path=path) from None
     target = Path(os.path.realpath(path))
     named = os.readlink(path)
     if (target.parts[:2] == ("/", "proc") or named.startswith(("/proc/", "/dev/fd/"))

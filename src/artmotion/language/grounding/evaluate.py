@@ -316,8 +316,8 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     earlier = outputs_of("report.json", FIGURES, ("linking", "holdouts"))
     outputs = ("report.json",) + (FIGURES if figures else ())
     if out is not None:
-        check_apart(out, input_folders(dataset))
         check_out_dir(out, replace=earlier, outputs=outputs)     # before the work, not after it
+        check_apart(out, input_folders(dataset))
     t0 = time.perf_counter()
     F = features if features is not None else load_features(dataset)
     t_feat = time.perf_counter() - t0

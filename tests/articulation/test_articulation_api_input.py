@@ -52,6 +52,8 @@ def test_classify_motion_still_classifies_valid_motion():
     ({"R": np.zeros((F, 3))}, r"R must be an \(F, 3, 3\) array"),
     ({"R": np.zeros((0, 3, 3)), "t": np.zeros((0, 3))}, "at least one"),
     ({"R": "rotations"}, "R must be an array of numbers"),
+    ({"R": np.tile(2 * np.eye(3), (F, 1, 1))}, "R is not a rotation matrix"),     # (was called static)
+    ({"R": np.tile(np.diag([1.0, 1.0, -1.0]), (F, 1, 1))}, "a reflection"),
     ({"noise": -1}, r"noise must be a number in \(0, inf\), got -1"),
     ({"noise": 0, "size": 0}, "noise must be"),
     ({"noise": float("nan")}, "noise must be"),

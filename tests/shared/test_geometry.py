@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -105,3 +106,20 @@ def test_non_unit_quaternion_is_rejected():
 def test_angle_between():
     assert np.isclose(angle_between([1, 0, 0], [0, 1, 0]), np.pi / 2)
     assert np.isclose(angle_between([1, 1, 0], [2, 2, 0]), 0.0, atol=1e-7)
+
+
+def test_rotation_checks_take_no_tolerance_that_accepts_anything():
+    """``tol=nan`` (or inf) passed every matrix: diag(5, 1, 1) became the identity quaternion."""
+    from artmotion.errors import InputError
+    from artmotion.geometry import check_rotations, matrix_to_quat, quat_to_matrix, rotation_angle
+
+    for tol in (float("nan"), float("inf"), 0.0, -1.0):
+        calls = (lambda t: matrix_to_quat(np.diag([5.0, 1, 1]), tol=t), lambda t: rotation_angle(np.eye(3), tol=t),
+                 lambda t: quat_to_matrix([0.0, 0, 0, 1], tol=t), lambda t: check_rotations(np.eye(3), tol=t))
+        for call in calls:
+            with pytest.raises(InputError, match="tol must be"):
+                call(tol)
+    for q in (None, [0.0, 0, 1], "abcd"):
+        with pytest.raises(InputError, match="quaternions must be"):
+            quat_to_matrix(q)
+    np.testing.assert_allclose(matrix_to_quat(np.eye(3)), [0, 0, 0, 1])

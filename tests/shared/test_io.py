@@ -608,3 +608,16 @@ def test_a_folder_output_given_with_a_slash_is_written(tmp_path, run_cli):
     finally:
         atomic.SLASHED.clear()
     assert code == 0 and (tmp_path / "crops" / "labels.csv").is_file(), err
+
+
+def test_write_mot_refuses_ground_truths_columns_it_would_drop(tmp_path):
+    """Columns 8-10 were written -1 whatever they held: MOT16/17 ground truth lost its class and
+    visibility in a round trip, and its scores changed. Results (-1 there) are written as before."""
+    from artmotion.io import write_mot
+
+    gt = np.array([[1, 1, 10, 10, 20, 40, 1, 7, 0.5, -1.0]])     # a distractor, half visible
+    with pytest.raises(InputError, match="columns 8-10 hold values other than -1"):
+        write_mot(tmp_path / "gt.txt", gt)
+    assert not (tmp_path / "gt.txt").exists()
+    write_mot(tmp_path / "res.txt", np.array([[1, 1, 10, 10, 20, 40, 0.9, -1, -1, -1]]))
+    assert (tmp_path / "res.txt").read_text() == "1,1,10.00,10.00,20.00,40.00,0.9,-1,-1,-1\n"

@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from artmotion.articulation.models import MAX_COORD, _orthonormal_to
 from artmotion.errors import InputError, check_range, float_array
-from artmotion.geometry.rotations import quat_to_matrix
+from artmotion.geometry.rotations import check_rotations, quat_to_matrix
 
 __all__ = ["factorize", "classify_motion", "classify_points", "classify_poses", "RigidResult", "stack_w"]
 
@@ -208,6 +208,7 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
         raise InputError(f"R must be an (F, 3, 3) array of rotation matrices, got shape {R.shape}")
     if len(R) < 1:
         raise InputError("R must hold at least one rotation, got none")
+    R = check_rotations(R)     # (a scaled or sheared matrix was classified, e.g. 2 I as static)
     if t.shape != (len(R), 3):
         raise InputError(f"t must be an (F, 3) array, one translation per rotation (F = {len(R)}), got shape {t.shape}")
     if not np.all(np.isfinite(R)):

@@ -18,6 +18,7 @@ from artmotion.geometry.boxes import (
 from artmotion.geometry.rotations import (
     angle_between,
     axis_angle_to_matrix,
+    check_rotations,
     matrix_to_axis_angle,
     matrix_to_quat,
     quat_to_matrix,
@@ -31,6 +32,7 @@ __all__ = [
     "box_center",
     "box_from_center",
     "box_overlap",
+    "check_rotations",
     "clip_box",
     "intersection",
     "iou",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.errors import InputError, float_array
+from artmotion.errors import InputError, check_range, float_array
 
 
 def _rotation():
@@ -19,7 +19,10 @@ def quat_to_matrix(q, *, tol: float = 1e-3) -> np.ndarray:
 
     Raises :class:`InputError` if a quaternion's norm differs from 1 by more than ``tol``.
     """
-    q = np.asarray(q, dtype=float)
+    _check_tol(tol)
+    q = float_array(q, "quaternions")
+    if q.ndim < 1 or q.shape[-1] != 4:
+        raise InputError(f"quaternions must be (..., 4) arrays (x, y, z, w), got shape {q.shape}")
     norms = np.linalg.norm(q, axis=-1)
     if np.any(~np.isfinite(norms)) or np.any(np.abs(norms - 1.0) > tol):
         bad = int(np.argmax(np.abs(np.nan_to_num(norms, nan=np.inf) - 1.0)))
@@ -27,11 +30,23 @@ def quat_to_matrix(q, *, tol: float = 1e-3) -> np.ndarray:
     return _rotation().from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
 
 
+def _check_tol(tol) -> None:
+    """A tolerance must be a number in (0, 1]: NaN or infinity would accept any matrix."""
+    check_range("tol", tol, 0.0, 1.0, lo_open=True)
+
+
+def check_rotations(R, name: str = "R", tol: float = 1e-3) -> np.ndarray:
+    """``R`` as a float array of rotation matrices ``(..., 3, 3)``, else an :class:`InputError`
+    (another shape, NaN, a matrix that is not orthonormal to ``tol`` or is a reflection)."""
+    return _rotations(R, name, tol)
+
+
 def _rotations(R, name: str, tol: float, stack: bool = True) -> np.ndarray:
     """``R`` as a float array of rotation matrices, shape ``(3, 3)`` (or ``(..., 3, 3)`` with
     ``stack``), else an :class:`InputError`: another shape, NaN or infinite entries, a matrix that
     is not orthonormal (``R Rᵀ`` differs from the identity by more than ``tol`` in an entry, the
     style of :func:`quat_to_matrix`'s ``tol``) or is a reflection (determinant -1)."""
+    _check_tol(tol)
     R = float_array(R, name)
     if not stack and R.ndim > 2:
         raise InputError(f"{name}: one 3x3 matrix, got a stack of shape {R.shape} "

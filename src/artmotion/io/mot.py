@@ -182,9 +182,15 @@ def _check_written_sizes(rows: np.ndarray, what: str) -> None:
 def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
     """Write ``(N, >=6)`` rows as MOTChallenge text, atomically, sorted by frame then id
     (:func:`check_mot_rows` first, and a box size that would be written as ``0.00``, the two
-    decimals of the file, is refused: never a file :func:`read_mot` would refuse)."""
+    decimals of the file, is refused: never a file :func:`read_mot` would refuse). These are
+    results: columns 8-10 are written -1, and rows that hold anything else there are refused."""
     what = f"rows for {os.fspath(path)}"
     rows = check_mot_rows(rows, what)
+    if rows.shape[1] > 7 and not (rows[:, 7:10] == -1).all():
+        # ground truth's consider/class/visibility (MOT16/17) or a 3-D position were dropped
+        # silently: a round trip through this writer changed the scores against that file
+        raise InputError(f"{what}: columns 8-10 hold values other than -1 (ground truth's class and "
+                         "visibility?): write_mot writes results, whose last three columns are -1")
     if rows.size:
         _check_written_sizes(rows, what)
         rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]

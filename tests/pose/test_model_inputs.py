@@ -121,3 +121,14 @@ def test_a_model_used_before_fit_says_so(tmp_path):
             use()
         assert isinstance(err.value, NotFittedError)  # scikit-learn's convention too
     assert not (tmp_path / "m.npz").exists()
+
+
+def test_a_model_fitted_on_a_feature_matrix_of_its_own_width_takes_no_crops():
+    """Fitted on 10 columns where its HOG has 124, predict on crops failed in NumPy's matmul and
+    save wrote a file that load called corrupt: both now say what the model takes."""
+    rng = np.random.default_rng(0)
+    reg = PoseRegressor(feature="hog", size=(16, 16), method="exact").fit(rng.random((30, 10)), rng.random((30, 2)))
+    assert reg.predict(rng.random((3, 10))).shape == (3, 2)
+    for call in (lambda: reg.predict([np.zeros((20, 20, 3), np.uint8)]), lambda: reg.save("never.npz")):
+        with pytest.raises(InputError, match="fitted on a feature matrix of 10 columns, not on the 124"):
+            call()

@@ -410,6 +410,21 @@ class PoseRegressor(BaseEstimator):
     def _as_features(self, images) -> np.ndarray:
         return images if self._is_matrix(images) else self._features(images)
 
+    def _takes_crops(self) -> None:
+        """An :class:`InputError` when the model was fitted on a feature matrix of another width
+        than its feature of a crop (a GP on features of the caller's own): it takes such a matrix,
+        not crops (whose feature it could not read: NumPy's shape error, or a saved file that
+        loads as corrupt)."""
+        if self.net_ is not None or self.gp_ is None:
+            return
+        cell, size, _ = self._crop_params()
+        width = self.pca_mean_.shape[0] if self.pca_mean_ is not None else self.gp_.X.shape[1]
+        dim = F.feature_dim(self.feature, size, cell)
+        if width != dim:
+            raise InputError(f"this model was fitted on a feature matrix of {width} columns, not on the {dim} of the "
+                             f"{self.feature} feature of {size[0]}x{size[1]} crops: it takes such a matrix, not crops, "
+                             "and is no model of crops to save")
+
     def predict(self, images, return_std: bool = False, batch: int = 256, views=None):
         """Mean (and std) of every angle for crops or a feature matrix (and their ``views`` if the
         model was trained with them); chunks of ``batch`` frames run on a small thread pool (NumPy
@@ -426,6 +441,8 @@ class PoseRegressor(BaseEstimator):
                    else F.feature_dim(self.feature, size, cell) if self.net_ is not None else gp.X.shape[1])
             if images.shape[1] != dim:
                 raise InputError(f"the feature matrix has {images.shape[1]} columns, but this model takes {dim}")
+        if not matrix:
+            self._takes_crops()
         V = self._check_views(views, len(images))
         if self.net_ is not None:  # the network runs on the whole batch, on torch's threads
             images = self._project(images if matrix else self._features(images), V)
@@ -552,6 +569,7 @@ class PoseRegressor(BaseEstimator):
         gp = self.gp_
         if gp is None or self.accel_var_ is None or self.filter_std_ is None:
             raise _not_fitted()
+        self._takes_crops()
         neighbours = getattr(gp, "neighbours", None)
         cell, size, blur = self._crop_params()  # (the values the model uses, not None for a default)
         data: dict[str, Any]  # arrays only; ``Any`` because ``**data`` also meets savez' ``allow_pickle: bool``

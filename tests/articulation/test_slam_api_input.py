@@ -216,3 +216,24 @@ def test_whole_number_floats_are_taken_as_integers(kind):
             f.update(*sim["observations"][k])
         runs.append(_state(f))
     assert runs[1] == runs[0] and runs[2] == runs[0]
+
+
+@pytest.mark.parametrize("field, value", [("dt", float("nan")), ("dt", -1.0), ("alphas", (-0.1, 0, 0, 0)),
+                                          ("alphas", "abcd"), ("alphas", (0.1,)), ("range_std", -1.0),
+                                          ("v", float("inf")), ("v", "1"), ("fov", 0.0), ("max_seen", 0)])
+def test_a_simulation_config_is_checked_as_made(field, value):
+    """NaN or negative noise gave NaN robot poses with no error; others failed deep in NumPy."""
+    from artmotion.articulation.slam.world import SimConfig
+
+    with pytest.raises(InputError, match=field.rstrip("s") if field == "alphas" else field):
+        SimConfig(**{field: value})
+    assert SimConfig().alphas == (0.05, 0.005, 0.005, 0.05)
+
+
+def test_a_filter_for_more_landmarks_than_memory_holds_is_refused():
+    """n_max = 10**6 was in range and asked for 29 TiB of covariance (a MemoryError)."""
+    from artmotion.articulation.slam.ekf import MAX_LANDMARKS
+
+    with pytest.raises(InputError, match="n_max must be a whole number in"):
+        EKFSlam(np.zeros(3), 0.1, (0,) * 4, 0.1, 0.01, n_max=10**6)
+    assert EKFSlam(np.zeros(3), 0.1, (0,) * 4, 0.1, 0.01, n_max=MAX_LANDMARKS).P.shape == (3 + 2 * MAX_LANDMARKS,) * 2

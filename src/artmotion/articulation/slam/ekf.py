@@ -139,6 +139,11 @@ def _check_sightings(ids, zs) -> tuple[list[int], np.ndarray]:
     return idx.astype(int).tolist(), Z
 
 
+#: most landmarks a filter is made for: the EKF's covariance is allocated for them at once, (3 +
+#: 2 n)^2 numbers (800 MB at 5000; 10^6 asked for 29 TiB and ended in a MemoryError)
+MAX_LANDMARKS = 5000
+
+
 def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulated, threshold, min_samples,
                      point_noise, max_radius, motion_var, accel, gate, undecided_var=0.0) -> tuple[np.ndarray, tuple, int, int]:
     """The arguments :class:`EKFSlam` and :class:`~artmotion.articulation.slam.graph.GraphSlam`
@@ -156,7 +161,7 @@ def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulat
         raise InputError(f"alphas must be 4 finite numbers >= 0 (the control noise of Eq. 4.23), got {reprlib.repr(alphas)}")
     check_range("range_std", range_std, 0.0, math.inf, lo_open=True, hi_open=True)
     check_range("bearing_std", bearing_std, 0.0, math.inf, lo_open=True, hi_open=True)
-    n_max = check_range("n_max", n_max, 0, 10**6, integer=True)
+    n_max = check_range("n_max", n_max, 0, MAX_LANDMARKS, integer=True)
     check_range("motion_var", motion_var, 0.0, math.inf, hi_open=True)
     check_range("undecided_var", undecided_var, 0.0, math.inf, hi_open=True)
     check_range("gate", gate, 0.0, 1.0, lo_open=True, hi_open=True)

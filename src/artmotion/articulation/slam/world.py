@@ -170,6 +170,27 @@ class SimConfig:
     fov: float = math.radians(120.0)
     max_seen: int | None = None  #: observe only the nearest this many landmarks in view
 
+    def __post_init__(self) -> None:
+        """Checked as made (NaN or a negative noise gave NaN poses with no error): a time step and
+        noise levels that are positive finite numbers, speeds finite (turn rates at most 100
+        rad/s), a field of view in (0, 2 pi]."""
+        check_range("dt", self.dt, 0.0, 3600.0, lo_open=True)
+        check_range("v", self.v, -1e3, 1e3)
+        check_range("w", self.w, -100.0, 100.0)
+        try:
+            alphas = tuple(self.alphas)
+        except TypeError:
+            alphas = ()
+        if len(alphas) != 4:
+            raise InputError(f"alphas must be 4 numbers (the velocity motion model's noise, Eq. 4.22), got {self.alphas!r}")
+        self.alphas = tuple(check_range(f"alphas[{i}]", a, 0.0, 1e3) for i, a in enumerate(alphas))
+        check_range("range_std", self.range_std, 0.0, 1e3, lo_open=True)
+        check_range("bearing_std", self.bearing_std, 0.0, math.pi, lo_open=True)
+        check_range("max_range", self.max_range, 0.0, 1e6, lo_open=True)
+        check_range("fov", self.fov, 0.0, 2 * math.pi, lo_open=True)
+        if self.max_seen is not None:
+            check_range("max_seen", self.max_seen, 1, 10**6, integer=True)
+
 
 def simulate(world: World, steps: int, cfg: SimConfig | None = None, seed: int = 0, radius: float = 10.0) -> dict:
     """Drive the robot around a circle (commanded ``v, w``) with noisy execution; observe landmarks

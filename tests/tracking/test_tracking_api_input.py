@@ -174,6 +174,10 @@ def test_grey_frames_are_tracked_as_bgr(grey):
 def test_detections_must_be_a_mapping():
     with pytest.raises(InputError, match="detections must be a mapping.*got list"):
         run(list(walk().values()))
+    for key in ("1", 1.5, True):      # (keyed by text or 1.5: no box was ever found, and no error)
+        with pytest.raises(InputError, match="frame numbers must be whole numbers"):
+            run({key: walk()[1], **walk()})
+    assert len(run({np.int64(k): v for k, v in walk().items()})[0])      # NumPy's integers are frame numbers
     with pytest.raises(InputError, match="detections must be a mapping.*got NoneType"):
         run_tracker(MultiObjectTracker(25, W, H), ((k, IMG) for k in range(1, 3)), None)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import time
 from collections.abc import Mapping
 from contextlib import closing
@@ -95,6 +96,10 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
                          f"(a dict), got {type(detections).__name__}")
     if detector is not None and not callable(detector):
         raise InputError(f"detector must be callable (image -> (N, 5) detections), got {type(detector).__name__}")
+    if detector is None:
+        bad = next((k for k in detections if isinstance(k, bool) or not isinstance(k, numbers.Integral)), None)
+        if bad is not None:     # (a key "1" or 1.5 was never looked up: no box anywhere, no error)
+            raise InputError(f"detections: frame numbers must be whole numbers (int keys), got {bad!r}")
     shared: dict = {}
     n = 0
     for n, img, d in _with_detections(frames, detections, detector, detect_every):

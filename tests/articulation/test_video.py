@@ -157,6 +157,18 @@ def _tracks(path) -> PointTracks:
     return point_tracks((img for _, img in seq.frames()), seq.fps)
 
 
+def test_tracks_rounded_to_whole_pixels_keep_their_answer(tmp_path):
+    """Positions written as whole pixels (another tracker's export): most steps are 0, the noise
+    fell to its floor and every still point's one-pixel flicker broke its rest — 'static', no part.
+    The rounding is noise too (a step of two roundings, 1 / sqrt 6 px)."""
+    from artmotion.articulation.video import analyze_tracks
+
+    tracks = _tracks(part_video(tmp_path / "turn.avi", "revolute", pivot=(110, 120)))
+    rounded = replace(tracks, xy=np.round(tracks.xy))
+    assert noise_level(rounded) >= 1 / math.sqrt(6) > noise_level(tracks)
+    assert analyze_tracks(tracks).model == analyze_tracks(rounded).model == "revolute"
+
+
 def test_tracks_dragged_off_their_point_are_found_and_a_moving_part_keeps_its_own(tmp_path):
     """A part slides 80 px over the background: the tracks inside it move with their points (their
     first place now shows something else), while background tracks that its edge drags along

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from artmotion.articulation.online import robust_scale
+from artmotion.articulation.online import resolution, robust_scale
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
@@ -61,12 +61,17 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
 
 
 def noise_level(tracks: PointTracks) -> float:
-    """Robust std (px) of one coordinate's frame-to-frame step over all tracks (most are static)."""
+    """Robust std (px) of one coordinate's frame-to-frame step over all tracks (most are static),
+    at least that of the rounding of positions written on a grid (whole pixels: most steps are 0,
+    and the median said no noise, so every still point's one-pixel flicker broke its rest; the
+    difference of two roundings uniform over a step ``r`` has std ``r / sqrt 6``)."""
     d = np.diff(tracks.xy, axis=0).reshape(-1)
     d = d[~np.isnan(d)]
     if d.size == 0:
         return 0.5
-    return float(max(1.4826 * np.median(np.abs(d - np.median(d))), 0.05))
+    xy = tracks.xy[~np.isnan(tracks.xy[:, :, 0])]
+    rounding = resolution(xy) / math.sqrt(6.0) if len(xy) else 0.0
+    return float(max(1.4826 * np.median(np.abs(d - np.median(d))), 0.05, rounding))
 
 
 #: seconds a moving track must rest first (it belongs to the scene; hands and arms enter moving)

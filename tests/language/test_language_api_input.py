@@ -107,6 +107,9 @@ def test_class_names_must_be_text():
         describe(TRACK, classes=(None, {}))
     with pytest.raises(InputError, match="track id must be a whole number"):
         describe(TRACK, classes=("person", {"1": "cart"}))
+    for classes in (("per\nson", {}), ("person", {1: "cart\n"})):
+        with pytest.raises(InputError, match="a class name: letters, spaces and hyphens"):
+            describe(TRACK, classes=classes)
     for subject in (7, "x\ny", "", "tool 3"):     # (a line break split a sentence over two lines)
         with pytest.raises(InputError, match="pose_subject must be a class name"):
             describe(TRACK, pose=(POSE_FRAMES, POSE_ANGLES), pose_subject=subject)

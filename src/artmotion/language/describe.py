@@ -91,11 +91,16 @@ def parse_classes(specs: list[str] | None, default: str = "person") -> tuple[str
     return default, per_track
 
 
+def _is_class_name(name) -> bool:
+    """Letters of any script ("café", "Überwagen"), spaces and hyphens: a noun a sentence can hold
+    (a line break in it split a sentence over two lines)."""
+    return isinstance(name, str) and re.fullmatch(r"[^\W\d_](?:[^\W\d_]|[ \-])*", name.strip()) is not None
+
+
 def _class_word(name: str) -> str:
-    name = name.strip()
-    if not re.fullmatch(r"[^\W\d_](?:[^\W\d_]|[ \-])*", name):  # letters of any script ("café", "Überwagen")
+    if not _is_class_name(name):
         raise ValueError(name)
-    return name.lower()
+    return name.strip().lower()
 
 
 # --------------------------------------------------------------------------------------------
@@ -566,12 +571,14 @@ def _check_classes(classes) -> tuple[str, dict[int, str]]:
     if not (isinstance(classes, tuple) and len(classes) == 2 and isinstance(classes[1], dict)):
         raise InputError(f"classes must be (default class, {{track id: class}}), got {classes!r}")
     default_cls, per_track = classes
-    if not isinstance(default_cls, str):
-        raise InputError(f"classes: the default class must be text (a class name), got {default_cls!r}")
+    if not _is_class_name(default_cls):
+        raise InputError(f"classes: the default class must be text (a class name: letters, spaces and hyphens), "
+                         f"got {default_cls!r}")
     for tid, name in per_track.items():
         check_range("classes: a track id", tid, -MAX_ID, MAX_ID, integer=True)
-        if not isinstance(name, str):
-            raise InputError(f"classes: the class of track {tid} must be text (a class name), got {name!r}")
+        if not _is_class_name(name):
+            raise InputError(f"classes: the class of track {tid} must be text (a class name: letters, spaces and "
+                             f"hyphens), got {name!r}")
     return default_cls, per_track
 
 

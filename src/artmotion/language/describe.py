@@ -579,7 +579,7 @@ def _check_classes(classes) -> tuple[str, dict[int, str]]:
         if not _is_class_name(name):
             raise InputError(f"classes: the class of track {tid} must be text (a class name: letters, spaces and "
                              f"hyphens), got {name!r}")
-    return default_cls, per_track
+    return default_cls.strip(), {tid: name.strip() for tid, name in per_track.items()}
 
 
 def describe(

@@ -151,3 +151,14 @@ def test_a_model_file_with_a_damaged_compression_field_is_one_line(tmp_path):
     bad.write_bytes(bytes(raw))
     with pytest.raises(InputError, match="not an artmotion pose model"):
         PoseRegressor.load(bad)
+
+
+def test_far_from_training_checks_its_standard_deviations(tmp_path):
+    """A (2, 5) array for a 2-angle model was reshaped into 5 answers; NaN said "not far"."""
+    rng = np.random.default_rng(0)
+    reg = PoseRegressor(method="exact").fit(rng.random((30, 3)), rng.random((30, 2)))
+    _, std = reg.predict(rng.random((4, 3)), return_std=True)
+    assert reg.far_from_training(std).shape == (4,)
+    for bad in (np.ones((2, 5)), np.full((3, 2), np.nan), -std, "abc"):
+        with pytest.raises(InputError, match=r"std must be an (\(n, 2\) )?array"):
+            reg.far_from_training(bad)

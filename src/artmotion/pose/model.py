@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from artmotion.errors import InputError, check_range, check_seed, need_package
+from artmotion.errors import InputError, check_range, check_seed, float_array, need_package
 from artmotion.io import atomic_path
 from artmotion.io.files import read_head
 from artmotion.pose import features as F
@@ -551,7 +551,13 @@ class PoseRegressor(BaseEstimator):
         gp = self.gp_
         if gp is None:
             raise _not_fitted()
-        S = np.asarray(std, dtype=float).reshape(-1, gp.n_outputs)
+        S = float_array(std, "std")
+        if S.ndim == 1 and gp.n_outputs == 1:
+            S = S[:, None]
+        if S.ndim != 2 or S.shape[1] != gp.n_outputs or not (np.isfinite(S).all() and (S >= 0).all()):
+            # (a (2, 5) array for 2 angles was reshaped into 5 answers; NaN said "not far")
+            raise InputError(f"std must be an (n, {gp.n_outputs}) array of finite numbers >= 0 (predict's standard "
+                             f"deviations), got shape {S.shape}")
         sf2 = np.array([h.sf2 for h in gp.hypers])
         sn2 = np.array([h.sn2 for h in gp.hypers])
         latent = (S / gp.y_std) ** 2 / gp.var_scale - sn2

@@ -283,6 +283,13 @@ def test_box_gaussian_needs_a_positive_size():
         with pytest.raises(InputError, match="positive width and height"):
             box_gaussian(box)
     np.testing.assert_allclose(box_gaussian([0, 0, 6, 12]).cov, np.diag([1.0, 2.0]))
+    for box in ([np.nan, 100, 40, 80], [np.inf, 100, 40, 80]):     # (a NaN or infinite mean was returned)
+        with pytest.raises(InputError, match="a finite box"):
+            box_gaussian(box)
+    for scale in (0.0, -1.0, np.nan):                               # (no covariance, or a negative one)
+        with pytest.raises(InputError, match="scale must be"):
+            box_gaussian([0, 0, 6, 12], scale=scale)
+    np.testing.assert_allclose(box_gaussian([0, 0, 6, 12], scale=2.0).cov, np.diag([2.0, 4.0]))
 
 
 @pytest.mark.parametrize("belief, needle", [

@@ -15,6 +15,7 @@ experts over many entities cost little.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -22,7 +23,7 @@ from typing import Any, ClassVar
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError, float_array
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.filters import KalmanFilter, constant_velocity
 from artmotion.geometry import box_area, box_center, intersection, iou
 
@@ -68,6 +69,10 @@ def box_gaussian(box, scale: float = 1.0) -> Gaussian:
         box = box[0]
     if not (box[2] > 0 and box[3] > 0):      # (NaN too) a box of no size would be a certain belief
         raise InputError(f"box_gaussian needs a box of positive width and height, got {box[2]:g}x{box[3]:g}")
+    if not math.isfinite(box[0] + box[1] + box[2] + box[3]):     # (a NaN or infinite mean: no belief)
+        raise InputError(f"box_gaussian needs a finite box, got {box.tolist()}")
+    if scale != 1.0:                          # (0, negative or NaN: no covariance; the trackers' own calls give none)
+        check_range("scale", scale, 0.0, 1e12, lo_open=True)
     return Gaussian(box_center(box), np.diag([max(box[2], 1e-3), max(box[3], 1e-3)]) / 6.0 * scale)
 
 

@@ -146,6 +146,9 @@ def _xy(frames=20, tracks=30):
     (lambda xy: ((np.where((np.arange(2) == 0)[None, None], np.nan, xy), 30.0, 640, 480), {}), "one coordinate NaN"),
     (lambda xy: ((xy, 30.0, 640, 480), {"slips": np.zeros(3), "checks": np.zeros(3)}), "slips must be 30"),
     (lambda xy: ((xy, 30.0, 640, 480), {"slips": np.ones(30), "checks": np.zeros(30)}), "no more slips than checks"),
+    # (1e30 wrapped round to -9.2e18 as a count)
+    (lambda xy: ((xy, 30.0, 640, 480), {"slips": np.full(30, 1e30), "checks": np.full(30, 1e30)}),
+     "slips must be 30 whole numbers in [0, 20]"),
 ])
 def test_point_tracks_refuse_bad_arguments_by_name(make, needle):
     from artmotion.articulation.video.tracks import PointTracks

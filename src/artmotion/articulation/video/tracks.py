@@ -40,7 +40,7 @@ class PointTracks:
     Checked when made (an :class:`InputError` naming the argument): ``xy`` of shape
     ``(frames, tracks, 2)``, both coordinates NaN or both finite, within ``±1e6`` px; ``fps`` in
     ``[0.001, 1000]``; ``width`` and ``height`` whole numbers >= 1; ``slips`` and ``checks`` whole
-    numbers >= 0, one per track, no more slips than checks."""
+    numbers in [0, frames], one per track, no more slips than checks."""
 
     xy: np.ndarray  # (frames, tracks, 2) float64
     fps: float
@@ -70,8 +70,9 @@ class PointTracks:
             if v is None:
                 continue
             v = float_array(v, name)
-            if v.shape != (xy.shape[1],) or not np.all((v >= 0) & (v == np.round(v))):
-                raise InputError(f"{name} must be {xy.shape[1]} whole numbers >= 0 (one per track), got "
+            # (at most one check a frame: 1e30 wrapped round to -9.2e18 as an int64)
+            if v.shape != (xy.shape[1],) or not np.all((v >= 0) & (v <= len(xy)) & (v == np.round(v))):
+                raise InputError(f"{name} must be {xy.shape[1]} whole numbers in [0, {len(xy)}] (one per track), got "
                                  f"{'shape ' + str(v.shape) if v.shape != (xy.shape[1],) else 'other values'}")
             setattr(self, name, v.astype(np.int64))
         if (self.slips is None) != (self.checks is None) or (self.slips is not None and np.any(self.slips > self.checks)):

@@ -21,7 +21,7 @@ class InputError(ArtmotionError, ValueError):
     """
 
     def __init__(self, message: str, path: str | os.PathLike | None = None, line: int | None = None):
-        self.path = None if path is None else os.fspath(path)
+        self.path = None if path is None else os.fsdecode(path)
         self.line = line
         self.reason = message
         where = ""

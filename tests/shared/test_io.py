@@ -621,3 +621,27 @@ def test_write_mot_refuses_ground_truths_columns_it_would_drop(tmp_path):
     assert not (tmp_path / "gt.txt").exists()
     write_mot(tmp_path / "res.txt", np.array([[1, 1, 10, 10, 20, 40, 0.9, -1, -1, -1]]))
     assert (tmp_path / "res.txt").read_text() == "1,1,10.00,10.00,20.00,40.00,0.9,-1,-1,-1\n"
+
+
+def test_a_file_name_that_is_no_name_is_an_input_error(tmp_path):
+    """None or a number where a file name goes raised a TypeError from deep inside (and a name
+    given as bytes broke the error message naming it)."""
+    from artmotion.app import EventIndex, load_run, run_pipeline
+    from artmotion.articulation.trajectory import read_trajectory
+    from artmotion.io import atomic_write, check_text, check_writable, read_mot, write_mot
+    from artmotion.io.sequence import open_sequence
+    from artmotion.pose import PoseRegressor
+    from artmotion.tracking import track
+
+    calls = [lambda v: track(v), lambda v: run_pipeline(v, tmp_path / "o"), lambda v: load_run(v),
+             lambda v: EventIndex(v), lambda v: read_mot(v), lambda v: write_mot(v, np.zeros((0, 10))),
+             lambda v: read_trajectory(v), lambda v: PoseRegressor.load(v), lambda v: atomic_write(v).__enter__(),
+             lambda v: open_sequence(v), lambda v: check_writable(v or 5)]       # (check_writable skips None)
+    for call in calls:
+        for value in (None, 5):
+            with pytest.raises(InputError, match="must be a file name"):
+                call(value)
+    with pytest.raises(InputError, match="not UTF-8") as err:
+        check_text(b"/tmp/caf\xe9")
+    assert err.value.path == os.fsdecode(b"/tmp/caf\xe9")
+    assert list(tmp_path.iterdir()) == []

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from artmotion.errors import InputError
-from artmotion.io.files import read_head
+from artmotion.io.files import as_path, read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
 APPLICATION_ID = 0x41524D54
@@ -178,7 +178,7 @@ class EventIndex:
         """Open the index at ``path`` (which must be an artmotion index, or absent: then it is
         created; :func:`building` creates it atomically); ``write=False`` opens it read-only
         (listing, searching) and never creates it."""
-        self.path = Path(path)
+        self.path = as_path(path, "an index")
         self.write = write
         exists = self.path.exists()
         if exists:

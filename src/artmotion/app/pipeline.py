@@ -31,6 +31,7 @@ from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
 from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.events import event_problem
+from artmotion.io.files import as_path
 from artmotion.io.media import MAX_FPS, MIN_FPS, cv2_name
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 from artmotion.tracking.config import DETECT_EVERY
@@ -409,7 +410,7 @@ def frame_bits(seq) -> int:
 def load_run(run_dir: str | os.PathLike) -> dict:
     """Read a run folder's manifest; an :class:`InputError` naming it when it is missing, not
     JSON, or its fields are not what :func:`run_pipeline` writes (types checked)."""
-    path = Path(run_dir) / MANIFEST
+    path = as_path(run_dir, "a run folder") / MANIFEST
     if not path.is_file():
         raise InputError(f"not a finished artmotion run (no {MANIFEST})", path=run_dir)
     try:

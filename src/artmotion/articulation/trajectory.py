@@ -35,7 +35,7 @@ import numpy as np
 from artmotion.articulation.online import MAX_SCALE, MAX_STEP, MIN_STEP, OnlineEstimator
 from artmotion.errors import InputError, check_range
 from artmotion.geometry.rotations import axis_angle_to_matrix
-from artmotion.io.files import number, read_text
+from artmotion.io.files import as_path, number, read_text
 
 __all__ = ["Trajectory", "read_trajectory", "fit_trajectory", "fit_points", "fit_poses"]
 
@@ -137,7 +137,7 @@ def _is_number(text: str) -> bool:
 
 def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
-    path = os.fspath(path)
+    path = os.fspath(as_path(path, "a trajectory file"))
     text = read_text(path, "a trajectory file")
     rows: list[list[float]] = []
     line_list: list[int] = []

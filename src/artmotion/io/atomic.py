@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import IO
 
 from artmotion.errors import InputError
+from artmotion.io.files import as_path
 
 
 def _not_regular(path: Path) -> InputError | None:
@@ -43,10 +44,11 @@ def _file_name(path: str | os.PathLike) -> Path:
     """``path`` as a :class:`Path`, refused when it ends with a slash, or was given so on the
     command line (:data:`SLASHED`): ``--model newdir/`` wrote a file called ``newdir``, and the
     slash says a folder was meant."""
-    raw = os.fspath(path)
+    as_path(path, "an output")      # (checked, not converted: a Path drops the trailing slash)
+    raw = os.fsdecode(path)
     if raw.endswith(os.sep) or (os.altsep and raw.endswith(os.altsep)) or raw in SLASHED:
         raise InputError("ends with a slash, as a folder's name: give the name of a file to write", path=raw)
-    return Path(path)
+    return Path(raw)
 
 
 def _through_link(path: Path) -> Path:
@@ -83,7 +85,7 @@ def _prepare(path: str | os.PathLike, made: list[Path], is_folder: bool = False)
     """``path`` as a :class:`Path` whose folder exists; the folders created for it are appended to
     ``made`` (outermost first), for :func:`_discard` to remove if the write fails. ``is_folder``: the
     output is a folder (:func:`atomic_dir`), whose name may end with a slash."""
-    path = _through_link(Path(path) if is_folder else _file_name(path))
+    path = _through_link(as_path(path, "an output folder") if is_folder else _file_name(path))
     error = _not_regular(path)
     if error is not None:
         raise error
@@ -312,7 +314,7 @@ def _plan_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None,
     empty or of other files, into which the ``outputs`` are moved, none over an existing name; an
     empty one is not replaced: it may be a mount point, or have the owner and mode its user gave
     it). An :class:`InputError` when it cannot be done."""
-    path = Path(path)
+    path = as_path(path, "an output folder")
     if path.is_symlink():
         if not path.is_dir():
             raise InputError("is a link to no folder: give a folder or a new name", path=path)
@@ -532,7 +534,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Pa
     """Save a matplotlib figure atomically (format from the suffix, PNG by default) and close it."""
     import matplotlib.pyplot as plt
 
-    path = Path(path)
+    path = as_path(path, "a figure")
     try:
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **savefig_kw)

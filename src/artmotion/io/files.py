@@ -8,7 +8,7 @@ from pathlib import Path
 
 from artmotion.errors import InputError
 
-__all__ = ["existing_file", "number", "read_head", "read_text"]
+__all__ = ["as_path", "existing_file", "number", "read_head", "read_text"]
 
 
 def number(text: str) -> float:
@@ -19,10 +19,20 @@ def number(text: str) -> float:
     return float(text)
 
 
+def as_path(value, what: str = "path") -> Path:
+    """``value`` (text, bytes or a path object) as a :class:`~pathlib.Path`; anything else (None, a
+    number) an :class:`InputError` naming ``what``, not a TypeError from deep inside."""
+    if isinstance(value, bytes):
+        value = os.fsdecode(value)
+    if not isinstance(value, (str, os.PathLike)):
+        raise InputError(f"{what} must be a file name (text or a path), got {type(value).__name__}")
+    return Path(value)
+
+
 def existing_file(path: str | os.PathLike, missing: str = "no such file") -> Path:
     """``path`` as a :class:`~pathlib.Path` if it is a regular file, else an :class:`InputError`
     (``missing`` when nothing is there, "not a file" otherwise)."""
-    path = Path(path)
+    path = as_path(path)
     if not path.is_file():
         raise InputError(missing if not path.exists() else "not a file", path=path)
     return path

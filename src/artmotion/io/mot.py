@@ -10,7 +10,7 @@ import numpy as np
 
 from artmotion.errors import InputError, float_array
 from artmotion.io.atomic import atomic_write
-from artmotion.io.files import number, read_text
+from artmotion.io.files import as_path, number, read_text
 
 MOT_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "X", "Y", "Z")
 #: the largest frame number of a sequence (also the largest ``seqLength`` of a seqinfo.ini)
@@ -36,7 +36,7 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
     :data:`MAX_BOXES_PER_FRAME` boxes in one frame, frames out of order (``require_sorted``), text
     that is not UTF-8.
     """
-    path = Path(path)
+    path = as_path(path, "a MOTChallenge file")
     text = read_text(path, "a MOTChallenge file")
     rows: list[list[float]] = []
     last_frame = -math.inf
@@ -184,7 +184,7 @@ def write_mot(path: str | os.PathLike, rows: np.ndarray) -> None:
     (:func:`check_mot_rows` first, and a box size that would be written as ``0.00``, the two
     decimals of the file, is refused: never a file :func:`read_mot` would refuse). These are
     results: columns 8-10 are written -1, and rows that hold anything else there are refused."""
-    what = f"rows for {os.fspath(path)}"
+    what = f"rows for {os.fspath(as_path(path, 'an output'))}"
     rows = check_mot_rows(rows, what)
     if rows.shape[1] > 7 and not (rows[:, 7:10] == -1).all():
         # ground truth's consider/class/visibility (MOT16/17) or a 3-D position were dropped

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError, check_range
+from artmotion.io.files import as_path
 from artmotion.io.media import (
     IMAGE_EXTS,
     MAX_FPS,
@@ -501,7 +502,7 @@ def open_sequence(source: str | os.PathLike | Sequence) -> Sequence:
     """Open a MOTChallenge folder, a video file, or a folder of images (see the module doc)."""
     if isinstance(source, Sequence):
         return source
-    path = Path(source)
+    path = as_path(source, "a source (a video, a folder of frames or a MOTChallenge folder)")
     if not path.exists():
         raise InputError("no such file or folder", path=path)
     if path.is_dir():

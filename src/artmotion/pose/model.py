@@ -19,7 +19,7 @@ from sklearn.base import BaseEstimator
 
 from artmotion.errors import InputError, check_range, check_seed, float_array, need_package
 from artmotion.io import atomic_path
-from artmotion.io.files import read_head
+from artmotion.io.files import as_path, read_head
 from artmotion.pose import features as F
 from artmotion.pose.data import MAX_KEYPOINT
 from artmotion.pose.filter import PoseFilter, accel_variance, tune_filter
@@ -614,7 +614,7 @@ class PoseRegressor(BaseEstimator):
         import zipfile
         import zlib
 
-        path = Path(path)
+        path = as_path(path, "a pose model")
         if read_head(path, 4, missing="model file not found") != b"PK\x03\x04":
             raise InputError("not an artmotion pose model (not a NumPy .npz file)", path=path)
         try:

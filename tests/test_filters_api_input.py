@@ -151,3 +151,19 @@ def test_in_place_operations_work_as_in_filterpy():
     np.testing.assert_array_equal(kf.P, np.eye(2) * 100)
     kf.predict()
     assert kf.x.tolist() == [1.0, 0.0]
+
+
+def test_models_and_likelihoods_beyond_the_floats_are_input_errors():
+    """Order 2**63 or 10**9 axes asked for all the memory; dt = 1e155 and a 1e200 innovation
+    overflowed (OverflowError), noise 1e308 gave an all-inf Q without a word."""
+    from artmotion.filters.kalman import gaussian_loglik
+    from artmotion.filters.models import taylor_model
+
+    for args in ((100000, 0.1), (2**63, 0.1), (2, 0.1, 1.0, 10**9), (2, 1e155), (2, 10.0, 1e308)):
+        with pytest.raises(InputError):
+            taylor_model(*args)
+    for y, S in ((1e200, np.eye(1)), (1e150, 1e-200 * np.eye(1))):
+        with pytest.raises(InputError, match="beyond the floats"):
+            gaussian_loglik(np.array([y]), S)
+    F, Q = taylor_model(2, 0.1, 1.0, 3)
+    assert F.shape == Q.shape == (6, 6) and np.isfinite(Q).all()

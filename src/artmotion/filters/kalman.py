@@ -168,7 +168,14 @@ def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
         s = float(S[0, 0])
         if y.shape != (1,) or not (0.0 < s < math.inf) or not math.isfinite(y[0]):
             _loglik_problem(y, S)
-        return -0.5 * (_LOG2PI + math.log(s) + float(y[0]) ** 2 / s)
+        try:
+            out = -0.5 * (_LOG2PI + math.log(s) + float(y[0]) ** 2 / s)
+        except OverflowError:
+            out = -math.inf
+        if not math.isfinite(out):      # (1e200 squared: beyond the floats, not a likelihood)
+            raise InputError(f"gaussian_loglik: y = {float(y[0]):g} is too far out for variance {s:g} (its "
+                             "log-likelihood is beyond the floats)")
+        return out
     try:
         L = np.linalg.cholesky(S)
         z = np.linalg.solve(L, y)
@@ -295,6 +302,8 @@ class KalmanFilter:
             S = H @ PHt + R
             K = np.linalg.solve(S.T, PHt.T).T
             ll = gaussian_loglik(y, S)
+        except InputError:      # (an innovation too far out for the floats: said as such)
+            raise
         except (ValueError, np.linalg.LinAlgError) as e:
             raise InputError("Kalman filter: the innovation covariance is not positive definite "
                              f"({getattr(e, 'reason', e)})") from None

@@ -15,12 +15,18 @@ import numpy as np
 
 from artmotion.errors import InputError, check_range, float_array
 
+#: highest Taylor order, and most state entries a model is made for (its ``F`` and ``Q`` are
+#: dense: 4096 entries take 128 MB each; order 2**63 or 10**9 axes ended in a MemoryError, order
+#: 200 overflowed the factorials)
+MAX_ORDER = 20
+MAX_STATE = 4096
+
 
 def _check_order_dt(order, dt) -> int:
     """``order`` as an int (a whole number >= 1) after checking ``dt`` (a finite step >= 0),
     else an :class:`InputError`. ``dt`` itself is used as given (its type keeps the results
     bit for bit)."""
-    order = check_range("order (of the Taylor model)", order, 1, math.inf, hi_open=True, integer=True)
+    order = check_range("order (of the Taylor model)", order, 1, MAX_ORDER, integer=True)
     check_range("dt (the time step)", dt.item() if isinstance(dt, np.ndarray) and dt.ndim == 0 else dt,
                 0.0, math.inf, hi_open=True)
     return order
@@ -51,21 +57,30 @@ def taylor_model(order: int, dt: float, noise_var: float = 1.0, dims: int = 1) -
     if isinstance(dims, bool) or not isinstance(dims, (int, np.integer)) or dims < 1:
         raise InputError(f"dims must be a whole number of axes >= 1, got {dims!r}")
     order = _check_order_dt(order, dt)
+    if dims * order > MAX_STATE:
+        raise InputError(f"dims x order must be at most {MAX_STATE} state entries, got {dims} x {order}")
     q = np.atleast_1d(float_array(noise_var, "noise variances"))
     if q.ndim != 1 or q.size not in (1, dims):
         raise InputError(f"noise variances must be one number or one per axis ({dims}), got {q.size}")
     if not (np.isfinite(q).all() and (q >= 0.0).all()):
         bad = q[~(np.isfinite(q) & (q >= 0.0))][0]
         raise InputError(f"noise variances must be finite and >= 0, got {bad:g}")
-    A = taylor_transition(order, dt)
-    B = white_noise_input(order, dt)
+    try:
+        A = taylor_transition(order, dt)
+        B = white_noise_input(order, dt)
+    except OverflowError:       # (dt**k of a Python float beyond the floats)
+        A = B = np.full((order, order), np.inf)
     if q.size == 1:
         q = np.repeat(q, dims)
     F = np.kron(np.eye(dims), A)
     Q = np.zeros_like(F)
-    for d in range(dims):
-        s = slice(d * order, (d + 1) * order)
-        Q[s, s] = B @ B.T * q[d]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for d in range(dims):
+            s = slice(d * order, (d + 1) * order)
+            Q[s, s] = B @ B.T * q[d]
+    if not (np.isfinite(F).all() and np.isfinite(Q).all()):     # (dt**k / k! beyond the floats)
+        raise InputError(f"the Taylor model of order {order} over dt = {float(dt):g} with these variances does not fit "
+                         "in floating point (F or Q overflows): take a smaller step or order")
     return F, Q
 
 

@@ -314,3 +314,14 @@ def test_run_takes_the_frame_rate_of_a_folder_of_images(tmp_path, run_cli):
     code, out, err = run_cli("run", frames, "--det", seq / "det" / "det.txt", "--fps", "0", "--out", tmp_path / "r2")
     assert code == 2 and err.startswith("artmotion: error: --fps") and err.count("\n") == 1, err
     assert not (tmp_path / "r2").exists()
+
+
+def test_run_says_why_ground_truth_gave_no_metrics(tmp_path, run_cli, sample_seq):
+    """An empty gt.txt gave no metrics and said nothing, where `eval` calls it an error."""
+    seq = small_sequence(sample_seq, tmp_path / "seq", n=4)
+    (seq / "gt" / "gt.txt").write_text("")
+    code, out, err = run_cli("run", seq, "--out", tmp_path / "r", "--no-video")
+    assert code == 0 and "metrics:" not in out and "holds no box to score against" in err, err
+    code, out, err = run_cli("run", small_sequence(sample_seq, tmp_path / "full", n=4), "--out", tmp_path / "r2",
+                             "--no-video")
+    assert code == 0 and "metrics:" in out and "no metrics" not in err

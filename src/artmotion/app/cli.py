@@ -131,6 +131,9 @@ def run_cmd(
     if res.pose is not None and res.pose["applies"] and not res.pose["judged"]:
         typer.echo(f"pose model: applied without knowing whether the {res.pose['crops']} crops are like its training "
                    f"crops (too few to tell)")
+    if res.metrics is None and res.gt_path is not None:
+        typer.echo(f"note: no metrics: {res.gt_path} holds no box to score against (empty, or every box ignored)",
+                   err=True)
     if res.metrics:
         m = res.metrics
         typer.echo(f"metrics: MOTA {m['MOTA']:.3f}  IDF1 {m['IDF1']:.3f}  IDS {int(m['IDS'])}"

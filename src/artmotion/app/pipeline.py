@@ -56,6 +56,9 @@ class RunResult:
     frames: int = 0
     #: 16-bit image files: ``(bits, largest value)`` of frames spread over them (:attr:`Sequence.depth`)
     depth: tuple[int, int | None] | None = None
+    #: the sequence's ground truth, when it has a file of it (``None``: none); no ``metrics`` with
+    #: one means it held no box to score against (empty, or every box ignored)
+    gt_path: Path | None = None
 
     @property
     def report(self) -> Path:
@@ -241,7 +244,7 @@ def run_pipeline(
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
-                     manifest["seconds"], manifest.get("pose"), seq.length, seq.depth)
+                     manifest["seconds"], manifest.get("pose"), seq.length, seq.depth, seq.gt_path)
 
 
 #: the files of a run folder

@@ -150,3 +150,37 @@ def test_unusable_scheduler_address_is_one_line(tmp_path, run_cli, sample_seq):
         code, _, err = run_cli("batch", tmp_path / "archive", "--scheduler", address)
         assert code == 2 and err.startswith(f"artmotion: error: {address}:") and err.count("\n") == 1, err
     assert not (tmp_path / "archive" / "artmotion-runs").exists()
+
+
+def test_two_commands_creating_one_index_at_once_keep_both_runs(tmp_path, run_cli, monkeypatch):
+    """Each built the new index under a temporary name and renamed it onto the path: both said
+    their runs were added, and the last rename left only its own (9 of 10 tries in a QA run).
+    Here the other command creates the index while this one is adding its run."""
+    from artmotion.app.index import IndexAppeared, building
+
+    db = tmp_path / "i.sqlite"
+    mine, theirs = _run(tmp_path / "mine", name="cam1"), _run(tmp_path / "theirs", name="cam2", source="/v/cam2.mp4")
+    with pytest.raises(IndexAppeared):      # the API: the index that appeared is not replaced
+        with building(db) as idx:
+            idx.add_run(mine)
+            with building(db) as other:
+                other.add_run(theirs)
+    with EventIndex(db, write=False) as idx:
+        assert [v["name"] for v in idx.videos()] == ["cam2"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["i.sqlite", "mine", "theirs"]     # no temporary left
+    db.unlink()
+    real = EventIndex.add_runs
+    raced = []
+
+    def add_runs(self, runs):       # the first time, the other command makes the index meanwhile
+        if not raced:
+            raced.append(True)
+            with building(db) as other:
+                real(other, [(theirs, json.loads((theirs / "run.json").read_text()))])
+        return real(self, runs)
+
+    monkeypatch.setattr(EventIndex, "add_runs", add_runs)
+    code, out, err = run_cli("index", "add", mine, "--db", db)
+    assert code == 0 and "2 videos" in out, err
+    with EventIndex(db, write=False) as idx:
+        assert sorted(v["name"] for v in idx.videos()) == ["cam1", "cam2"]

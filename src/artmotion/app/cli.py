@@ -41,13 +41,17 @@ def _add_runs(db: Path, runs: list[Path]) -> tuple[int, list[str | None]]:
     """Read and check every run's manifest, then add them all to the index at ``db`` (created
     atomically if new); returns the number of videos in it and, per run, the run folder of the
     entry it replaced (the same source), if any."""
-    from artmotion.app.index import building
+    from artmotion.app.index import IndexAppeared, building
     from artmotion.app.pipeline import load_run
 
     manifests = [(run, load_run(run)) for run in runs]
-    with building(db) as idx:
-        added = idx.add_runs(manifests)
-        return len(idx.videos()), [old for _, old in added]
+    while True:
+        try:
+            with building(db) as idx:
+                added = idx.add_runs(manifests)
+                return len(idx.videos()), [old for _, old in added]
+        except IndexAppeared:       # another command created the index meanwhile: add to that one
+            continue
 
 
 def _label(name: str, source: str | None, shared: set) -> str:

@@ -497,10 +497,19 @@ def _source_key(run: dict, run_dir) -> str:
     return f"{path}#{run['fingerprint']}" if run.get("fingerprint") else path
 
 
+class IndexAppeared(Exception):
+    """Raised by :func:`building` when another process created the index at its path while this
+    one built a new one there: nothing was written; open it again (:func:`building` then adds to
+    the index that appeared)."""
+
+
 @contextlib.contextmanager
 def building(path: str | os.PathLike):
     """An index open for writing at ``path``; a new one is built under a temporary name and
-    renamed onto ``path`` only if the block succeeds (a failed command creates nothing)."""
+    takes the name ``path`` only if the block succeeds (a failed command creates nothing) and no
+    other process created an index there meanwhile: the name is claimed with a link, which never
+    replaces a file (two commands creating one index at once each reported their runs added, and
+    the last rename left only its own), else :class:`IndexAppeared`."""
     from artmotion.io import atomic_path
 
     path = Path(path)
@@ -512,3 +521,13 @@ def building(path: str | os.PathLike):
         tmp.unlink()                        # SQLite creates the file itself
         with EventIndex(tmp, write=True) as idx:
             yield idx
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise IndexAppeared(path) from None
+        except OSError:             # (no hard links here, FAT: the rename, as before)
+            pass
+    # a rename onto another name of the same file does nothing: the temporary name is left
+    with contextlib.suppress(OSError):
+        if os.path.samefile(tmp, path):
+            os.unlink(tmp)

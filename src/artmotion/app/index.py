@@ -510,24 +510,17 @@ def building(path: str | os.PathLike):
     other process created an index there meanwhile: the name is claimed with a link, which never
     replaces a file (two commands creating one index at once each reported their runs added, and
     the last rename left only its own), else :class:`IndexAppeared`."""
-    from artmotion.io import atomic_path
+    from artmotion.io.atomic import NameTaken, atomic_path
 
     path = Path(path)
     if path.exists():
         with EventIndex(path, write=True) as idx:
             yield idx
         return
-    with atomic_path(path, suffix=".sqlite") as tmp:
-        tmp.unlink()                        # SQLite creates the file itself
-        with EventIndex(tmp, write=True) as idx:
-            yield idx
-        try:
-            os.link(tmp, path)
-        except FileExistsError:
-            raise IndexAppeared(path) from None
-        except OSError:             # (no hard links here, FAT: the rename, as before)
-            pass
-    # a rename onto another name of the same file does nothing: the temporary name is left
-    with contextlib.suppress(OSError):
-        if os.path.samefile(tmp, path):
-            os.unlink(tmp)
+    try:
+        with atomic_path(path, suffix=".sqlite", replace=False) as tmp:
+            tmp.unlink()                        # SQLite creates the file itself
+            with EventIndex(tmp, write=True) as idx:
+                yield idx
+    except NameTaken:
+        raise IndexAppeared(path) from None

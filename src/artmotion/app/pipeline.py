@@ -565,6 +565,5 @@ def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> 
         prev = json.loads((out / MANIFEST).read_text(encoding="utf-8")) if (out / MANIFEST).is_file() else None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         prev = None
-    same = prev is None or (prev.get("fingerprint") == fingerprint
-                            and prev.get("source") == str(Path(seq.path).resolve()))
+    same = prev is None or (prev.get("fingerprint") == fingerprint and prev.get("source") == str(own))
     return out if same else Path(root) / f"{name}-{fingerprint[:8]}"

@@ -211,8 +211,6 @@ def classify_motion(R: np.ndarray, t: np.ndarray, noise: float = 0.005, size: fl
     R = check_rotations(R)     # (a scaled or sheared matrix was classified, e.g. 2 I as static)
     if t.shape != (len(R), 3):
         raise InputError(f"t must be an (F, 3) array, one translation per rotation (F = {len(R)}), got shape {t.shape}")
-    if not np.all(np.isfinite(R)):
-        raise InputError("R contains NaN or infinite values")
     if not np.all(np.isfinite(t)):
         raise InputError("t contains NaN or infinite values")
     if centre is None:

@@ -69,18 +69,19 @@ def taylor_model(order: int, dt: float, noise_var: float = 1.0, dims: int = 1) -
         A = taylor_transition(order, dt)
         B = white_noise_input(order, dt)
     except OverflowError:       # (dt**k of a Python float beyond the floats)
-        A = B = np.full((order, order), np.inf)
+        A = B = np.full((order, 1), np.inf)
     if q.size == 1:
         q = np.repeat(q, dims)
+    with np.errstate(over="ignore", invalid="ignore"):
+        BB = B @ B.T
+        if not (np.isfinite(A).all() and np.isfinite(BB * q.max()).all()):     # (dt**k / k! beyond the floats)
+            raise InputError(f"the Taylor model of order {order} over dt = {float(dt):g} with these variances does "
+                             "not fit in floating point (F or Q overflows): take a smaller step or order")
     F = np.kron(np.eye(dims), A)
     Q = np.zeros_like(F)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for d in range(dims):
-            s = slice(d * order, (d + 1) * order)
-            Q[s, s] = B @ B.T * q[d]
-    if not (np.isfinite(F).all() and np.isfinite(Q).all()):     # (dt**k / k! beyond the floats)
-        raise InputError(f"the Taylor model of order {order} over dt = {float(dt):g} with these variances does not fit "
-                         "in floating point (F or Q overflows): take a smaller step or order")
+    for d in range(dims):
+        s = slice(d * order, (d + 1) * order)
+        Q[s, s] = BB * q[d]
     return F, Q
 
 

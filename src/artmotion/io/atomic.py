@@ -134,16 +134,6 @@ def check_apart(path: str | os.PathLike | None, inputs: Iterable[str | os.PathLi
             raise InputError(f"is inside the input folder {q}: write the output elsewhere", path=path)
 
 
-def check_text(path: str | os.PathLike, why: str = "an index keeps paths as text", fix: str = "rename it") -> None:
-    """An :class:`InputError` naming ``path`` when it holds bytes that are not UTF-8 (read by Python as
-    lone surrogates): such a name cannot be stored as text (``why``), so the work that would need it
-    is refused before it starts rather than after; ``fix``: what to do about it."""
-    try:
-        os.fsdecode(path).encode("utf-8")
-    except UnicodeEncodeError:
-        raise InputError(f"the name holds bytes that are not UTF-8 text ({why}): {fix}", path=path) from None
-
-
 def check_writable(*paths: str | os.PathLike | None, inputs: Iterable[str | os.PathLike | None] = ()) -> None:
     """Before long work: an :class:`InputError` naming the first output ``path`` (``None``s are
     skipped) that cannot be written — an existing folder where a file goes, a device or pipe, a
@@ -258,14 +248,19 @@ def _undone_on_failure(path: Path, made: list[Path], folders: list[Path]) -> Ite
         raise
 
 
+class NameTaken(InputError):
+    """:func:`atomic_path` with ``replace=False``: another process made the file meanwhile."""
+
+
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, suffix: str | None = None, replace: bool = True) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` if the block succeeds.
 
     Use for writers that want a file name (OpenCV's VideoWriter, matplotlib's savefig, SQLite).
     ``suffix`` defaults to the destination's suffix so that format detection by extension works.
     A failure or an interruption at any point, the temporary name's creation included, leaves
-    nothing behind.
+    nothing behind. ``replace=False``: ``path`` is claimed only if nothing is there by then (another
+    process may have made it meanwhile), else :class:`NameTaken` and nothing is written.
     """
     folders: list[Path] = []
     path = _prepare(path, folders)
@@ -274,7 +269,13 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     with _undone_on_failure(path, made, folders):
         tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made)
         yield tmp_path
-        os.replace(tmp_path, path)
+        if replace:
+            os.replace(tmp_path, path)
+            return
+        try:
+            _claim(tmp_path, path)
+        except FileExistsError:
+            raise NameTaken("exists: another process made it meanwhile; nothing was replaced", path=path) from None
 
 
 def _write_mode(mode) -> bool:
@@ -439,10 +440,11 @@ def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:
         raise
 
 
-def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()) -> Callable[[Path], bool]:
+def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = (),
+               accept: Callable[[dict], bool] | None = None) -> Callable[[Path], bool]:
     """A ``replace`` test for :func:`atomic_dir`: the folder holds the JSON object ``marker`` (with
-    ``keys``), written by the same command before, and otherwise only the command's other outputs:
-    ``names``, a regular expression or the names themselves."""
+    ``keys``, and that ``accept`` takes if given), written by the same command before, and otherwise
+    only the command's other outputs: ``names``, a regular expression or the names themselves."""
     if isinstance(names, str):
         pattern = re.compile(names)
         allowed: Callable[[str], bool] = lambda n: pattern.fullmatch(n) is not None   # noqa: E731
@@ -459,36 +461,42 @@ def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()
                 data = json.load(fh)
         except (OSError, ValueError, RecursionError):
             return False
-        return isinstance(data, dict) and all(k in data for k in want)
+        return isinstance(data, dict) and all(k in data for k in want) and (accept is None or accept(data))
 
     return test
 
 
-def _move_new(src: Path, dst: Path) -> None:
+def _claim(src: Path, dst: Path) -> None:
     """Move ``src`` to the name ``dst``, which must not exist (another writer may just have made
-    it: a check before a rename does not hold it): a file is linked there and unlinked (a link never
-    replaces a name), a folder claims the name with an empty folder and is renamed onto it. Where
-    the file system has no hard links (FAT, exFAT) the file is renamed unless the name exists."""
-    try:
-        if src.is_dir() and not src.is_symlink():
-            os.mkdir(dst)
-            try:
-                os.rename(src, dst)
-            except BaseException:
-                with contextlib.suppress(OSError):
-                    os.rmdir(dst)
-                raise
-            return
+    it: a check before a rename does not hold it), else :class:`FileExistsError`: a file is linked
+    there and unlinked (a link never replaces a name), a folder claims the name with an empty
+    folder and is renamed onto it. Where the file system has no hard links (FAT, exFAT) the file is
+    renamed unless the name exists."""
+    if src.is_dir() and not src.is_symlink():
+        os.mkdir(dst)
         try:
-            os.link(src, dst, follow_symlinks=False)
-        except FileExistsError:
-            raise
-        except OSError:
-            if os.path.lexists(dst):
-                raise FileExistsError(errno.EEXIST, "File exists", os.fspath(dst)) from None
             os.rename(src, dst)
-            return
-        os.unlink(src)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.rmdir(dst)
+            raise
+        return
+    try:
+        os.link(src, dst, follow_symlinks=False)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.lexists(dst):
+            raise FileExistsError(errno.EEXIST, "File exists", os.fspath(dst)) from None
+        os.rename(src, dst)
+        return
+    os.unlink(src)
+
+
+def _move_new(src: Path, dst: Path) -> None:
+    """:func:`_claim`, an existing ``dst`` said as the :class:`InputError` of :func:`_check_free`."""
+    try:
+        _claim(src, dst)
     except FileExistsError:
         _check_free(dst.parent, [dst.name])
         raise

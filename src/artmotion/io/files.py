@@ -8,7 +8,7 @@ from pathlib import Path
 
 from artmotion.errors import InputError
 
-__all__ = ["as_path", "existing_file", "number", "read_head", "read_text"]
+__all__ = ["as_path", "check_text", "existing_file", "number", "read_head", "read_text"]
 
 
 def number(text: str) -> float:
@@ -27,6 +27,16 @@ def as_path(value, what: str = "path") -> Path:
     if not isinstance(value, (str, os.PathLike)):
         raise InputError(f"{what} must be a file name (text or a path), got {type(value).__name__}")
     return Path(value)
+
+
+def check_text(path: str | os.PathLike, why: str = "an index keeps paths as text", fix: str = "rename it") -> None:
+    """An :class:`InputError` naming ``path`` when it holds bytes that are not UTF-8 (read by Python as
+    lone surrogates): such a name cannot be stored as text (``why``), so the work that would need it
+    is refused before it starts rather than after; ``fix``: what to do about it."""
+    try:
+        os.fsdecode(path).encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError(f"the name holds bytes that are not UTF-8 text ({why}): {fix}", path=path) from None
 
 
 def existing_file(path: str | os.PathLike, missing: str = "no such file") -> Path:

@@ -47,8 +47,7 @@ from typing import Literal
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.atomic import check_text
-from artmotion.io.files import check_riff_size, read_head
+from artmotion.io.files import check_riff_size, check_text, read_head
 
 __all__ = ["IMAGE_EXTS", "MAX_FPS", "MIN_FPS", "VIDEO_EXTS", "check_image_bytes", "check_video", "check_written_video",
            "cv2_name", "depth_note", "ffmpeg_quiet", "frame_depth", "image_problem", "open_capture", "read_frame", "read_image",

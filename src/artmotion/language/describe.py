@@ -616,13 +616,9 @@ def describe(
     if image_size is not None:
         check_image_size(tracks, image_size)
     default_cls, per_track = _check_classes(classes)
-    try:
-        subject = _class_word(pose_subject) if isinstance(pose_subject, str) else None
-    except ValueError:
-        subject = None
-    if subject is None:
+    if not _is_class_name(pose_subject):
         raise InputError(f"pose_subject must be a class name (letters, spaces and hyphens), got {pose_subject!r}")
-    pose_subject = subject
+    pose_subject = _class_word(pose_subject)
     if pose_track is not None:
         pose_track = check_range("pose_track", pose_track, -MAX_ID, MAX_ID, integer=True)
     if pose is not None:

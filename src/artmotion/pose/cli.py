@@ -366,13 +366,7 @@ def _earlier_evaluation(folder: Path) -> bool:
 
     names = {"eval.md"} | {f"{s}_{f}{kind}.csv" for s in ("cv", "test", "dark") for f in FEATURES
                            for kind in ("", "_filtered")}
-    if not outputs_of("eval.json", names)(folder):
-        return False
-    try:
-        data = json.loads((folder / "eval.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
-        return False
-    return isinstance(data, dict) and bool(data) and set(data) <= set(FEATURES)
+    return outputs_of("eval.json", names, accept=lambda data: bool(data) and set(data) <= set(FEATURES))(folder)
 
 
 _UNSEEN_TITLES = {"test": "Unseen normal-light sequence", "dark": "Unseen dark sequence"}

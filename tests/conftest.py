@@ -2,6 +2,12 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# tests never assert on time: hypothesis's 200 ms deadline per example failed on a first call that
+# imported SciPy's rotations on a loaded machine
+settings.register_profile("artmotion", deadline=None)
+settings.load_profile("artmotion")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"

@@ -123,3 +123,21 @@ def test_rotation_checks_take_no_tolerance_that_accepts_anything():
         with pytest.raises(InputError, match="quaternions must be"):
             quat_to_matrix(q)
     np.testing.assert_allclose(matrix_to_quat(np.eye(3)), [0, 0, 0, 1])
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_box_with_nan_or_infinity_is_refused_not_scored_zero(bad):
+    """A NaN box used to have IoU 0 with everything (the division skipped a NaN union). A size of
+    -inf is a negative size, an empty box, like any other."""
+    from artmotion.geometry import boxes as B
+    good = [10.0, 10.0, 20.0, 30.0]
+    for k in range(2 if bad == -np.inf else 4):
+        box = list(good)
+        box[k] = bad
+        calls = [(B.iou, box, good), (B.iou, good, box), (B.iou_matrix, [box], [good]),
+                 (B.overlap_ratio, box, good), (B.overlap_ratio, good, box), (B.max_iou, good, [box]),
+                 (B.max_iou, box, [good]), (B.max_iou, good, [box] * 20), (B.box_overlap, box, good),
+                 (B.box_overlap, good, box)]
+        for f, a, b in calls:
+            with pytest.raises(InputError, match="finite"):
+                f(a, b)

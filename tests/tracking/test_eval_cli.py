@@ -76,7 +76,18 @@ def test_missing_file_and_bad_threshold(run_cli, files, tmp_path):
     code, _, err = run_cli("eval", tmp_path / "nope.txt", res)
     assert code == 2 and "nope.txt: no such file" in err and err.count("\n") == 1
     code, _, err = run_cli("eval", gt, res, "--iou", "1.5")
-    assert code == 2 and "IoU threshold" in err
+    assert code == 2 and "--iou must be a number in (0, 1], got 1.5" in err
+
+
+def test_api_threshold_that_is_not_a_number():
+    """``evaluate(iou_threshold="abc")`` was a bare ValueError from ``float()``."""
+    from artmotion.errors import InputError
+    from artmotion.tracking import evaluate
+
+    gt = np.array([[1, 1, 0, 0, 10, 10, 1, -1, -1, -1]], dtype=float)
+    for bad in ("abc", None, True, float("nan")):
+        with pytest.raises(InputError, match="iou_threshold must be a number"):
+            evaluate(gt, gt, iou_threshold=bad)
 
 
 def test_unknown_mot17_class_under_mot17_rules(run_cli, tmp_path):

@@ -5,6 +5,8 @@ Every function accepts a single box of shape ``(4,)`` or a stack ``(..., 4)``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from artmotion.errors import InputError
@@ -51,10 +53,18 @@ def intersection(a, b) -> np.ndarray:
     return np.maximum(w, 0.0) * np.maximum(h, 0.0)
 
 
+def _not_finite(name: str) -> InputError:
+    return InputError(f"{name}: boxes must be finite numbers, got NaN or infinite values")
+
+
 def iou(a, b) -> np.ndarray:
-    """Intersection over union (broadcasting); 0 where the union is empty."""
+    """Intersection over union (broadcasting); 0 where the union is empty (a box of negative width
+    or height is empty). A box with NaN, an infinite corner or an infinite positive size is an
+    :class:`~artmotion.errors.InputError` (its union is not finite), not an IoU of 0."""
     inter = intersection(a, b)
     union = box_area(a) + box_area(b) - inter
+    if not np.isfinite(union).all():
+        raise _not_finite("iou")
     return np.divide(inter, union, out=np.zeros_like(inter, dtype=float), where=union > 0)
 
 
@@ -81,6 +91,8 @@ def overlap_ratio(a, b) -> np.ndarray:
     """Fraction of box ``a`` covered by box ``b``: ``|a ∩ b| / |a|``."""
     inter = intersection(a, b)
     area = box_area(a)
+    if not np.isfinite(area + inter + box_area(b)).all():
+        raise _not_finite("overlap_ratio")
     return np.divide(inter, area, out=np.zeros_like(inter, dtype=float), where=area > 0)
 
 
@@ -112,14 +124,18 @@ def max_iou(box, boxes) -> float:
     for b in boxes.tolist():
         inter, area_a, area_b = _overlap_terms(a, b)
         union = area_a + area_b - inter
+        if not math.isfinite(union):  # a box with NaN or an infinity (as iou)
+            raise _not_finite("max_iou")
         best = max(best, inter / union if union > 0 else 0.0)
     return best
 
 
 def box_overlap(a, b) -> float:
     """:func:`overlap_ratio` of two single boxes, as a float."""
-    inter, area, _ = _overlap_terms(np.asarray(a, dtype=float).reshape(4).tolist(),
-                                    np.asarray(b, dtype=float).reshape(4).tolist())
+    inter, area, area_b = _overlap_terms(np.asarray(a, dtype=float).reshape(4).tolist(),
+                                         np.asarray(b, dtype=float).reshape(4).tolist())
+    if not math.isfinite(area + area_b - inter):  # a box with NaN or an infinity (as iou)
+        raise _not_finite("box_overlap")
     return inter / area if area > 0 else 0.0
 
 

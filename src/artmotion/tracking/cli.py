@@ -19,9 +19,10 @@ def eval_command(
     """Score tracking results: MOTA, MOTP, IDF1, HOTA, MT/PT/ML, FM, IDS, FP, FN (MOTChallenge rules)."""
     import json
 
-    from artmotion.errors import InputError
+    from artmotion.errors import InputError, check_range
     from artmotion.tracking.metrics import columns_of, evaluate, format_table, gt_rules
 
+    check_range("--iou", iou, 0.0, 1.0, lo_open=True)
     scores = evaluate(gt, results, iou_threshold=iou, rules=rules)
     if not scores["GT_DETS"]:
         # nothing to score against: MOTA 0 would read as a result

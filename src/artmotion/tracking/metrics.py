@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 from artmotion.io.mot import MOT17_CLASSES, MOT17_PEDESTRIAN, check_ids, check_mot_rows, mot_columns
@@ -356,10 +356,7 @@ def _scores(gt: np.ndarray, res: np.ndarray, thr: float, per_alpha: bool) -> dic
 
 
 def _threshold(iou_threshold) -> float:
-    thr = float(iou_threshold)
-    if not 0.0 < thr <= 1.0:
-        raise InputError(f"IoU threshold must be in (0, 1], got {iou_threshold!r}")
-    return thr
+    return float(check_range("iou_threshold", iou_threshold, 0.0, 1.0, lo_open=True))
 
 
 def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False, rules: str = "auto") -> dict:

@@ -448,3 +448,10 @@ def test_online_estimator_set_params_checks_as_the_constructor_does():
     est.update([0.0, 0.0, 0.0])
     with pytest.raises(InputError, match="before the first update"):
         est.set_params(order=2)                              # its samples were scored with order 3
+
+
+def test_fit_poses_takes_no_time_stamps_it_would_ignore():
+    """fit_poses had a ``time`` argument it never used; a third positional argument is now an error,
+    not silently dropped (the classification is geometric)."""
+    with pytest.raises(TypeError):
+        fit_poses(POSITIONS, QUATS, np.arange(len(POSITIONS)))

@@ -318,3 +318,14 @@ def test_a_users_expert_with_a_bad_belief_is_named(belief, needle):
             pote.estimate(Frame(7, IMG), None, Entity(box=np.array([10.0, 10.0, 20.0, 40.0])))
     finally:
         EXPERTS.pop("test-bad", None)
+
+
+def test_finish_takes_a_length_of_at_least_the_last_frame():
+    """``finish(-5)`` closed the sequence with a negative length (events at its end were wrong)."""
+    t = MultiObjectTracker(25, W, H)
+    last = run_tracker(t, ((k, IMG) for k in range(1, 13)), walk())
+    for bad in (-5, 0, last - 1, 2.5, "12", True):
+        with pytest.raises(InputError, match="length must be a whole number"):
+            t.finish(bad)
+    rows, _ = t.finish(last + 3)
+    assert len(rows)

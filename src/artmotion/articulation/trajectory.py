@@ -259,13 +259,14 @@ def _radius_note(res, radius_range: tuple[float, float]) -> str | None:
             f"hinge's radius [{lo:g}, {hi:g}]: give --radius-range in the data's units")
 
 
-def fit_poses(positions, quats, time=None, noise: float | None = None, min_samples: int = 7, horizon: int = 5,
+def fit_poses(positions, quats, *, noise: float | None = None, min_samples: int = 7, horizon: int = 5,
               noise_floor: float = 0.0) -> dict:
     """Rigid-body classification (4.3.2) of a 6-D pose track, re-run on growing prefixes to tell when
     the answer settled (``decided_at``: first sample from which every later prefix agrees).
     ``noise``: the positional noise std (data units); ``None``: estimated from the whole track with
     the angular noise (:func:`~artmotion.articulation.rigid.pose_noise`), at least ``noise_floor``.
-    ``min_samples``: a whole number >= 2 (a shorter track is undecided); ``horizon``: predicted samples."""
+    ``min_samples``: a whole number >= 2 (a shorter track is undecided); ``horizon``: predicted samples.
+    The classification is geometric: it takes no time stamps (``decided_at`` counts samples)."""
     from artmotion.articulation.rigid import _check_noise_size, check_poses, classify_poses, pose_noise
 
     min_samples = check_range("min_samples", min_samples, 2, 10**9, integer=True)
@@ -329,7 +330,7 @@ def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_
     OnlineEstimator(threshold=threshold, min_samples=min_samples, **kwargs)  # checks the options
     traj = read_trajectory(path, time=time)
     if traj.quats is not None:
-        out = fit_poses(traj.points, traj.quats, traj.time, noise=kwargs.get("noise"), min_samples=min_samples,
+        out = fit_poses(traj.points, traj.quats, noise=kwargs.get("noise"), min_samples=min_samples,
                         noise_floor=kwargs.get("noise_floor") or 0.0)
     else:
         out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)

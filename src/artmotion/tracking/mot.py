@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.geometry import clip_box
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import side_of, track_events
@@ -70,8 +70,13 @@ class MultiObjectTracker(OnlineTracker):
         super()._ended(t)
 
     def finish(self, length: int | None = None) -> tuple[np.ndarray, list[dict]]:
-        """Close the sequence; return ``(rows, events)`` (rows: N x 10 MOT array, ids renumbered)."""
-        length = length or self.last_frame
+        """Close the sequence; return ``(rows, events)`` (rows: N x 10 MOT array, ids renumbered).
+        ``length``: the sequence's number of frames (default: the last frame stepped), at least
+        that last frame."""
+        if length is None:
+            length = self.last_frame
+        else:
+            length = check_range("length", length, max(self.last_frame, 1), 10**9, integer=True)
         for t in self.tracks:
             if t.first_box is None:
                 self._ended(t)

@@ -83,6 +83,17 @@ def check_range(name: str, value, lo, hi, *, lo_open: bool = False, hi_open: boo
     return int(value) if integer else value
 
 
+def check_bool(name: str, value, *, none: bool = False) -> bool | None:
+    """``value`` as a bool if it is one (Python's or NumPy's; ``None`` too with ``none``); else an
+    :class:`InputError`: a string such as ``"no"`` is true to Python, so a switch given one would
+    silently be on (scikit-learn refuses it the same way)."""
+    if value is None and none:
+        return None
+    if isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")):
+        return bool(value)
+    raise InputError(f"{name} must be True or False{' (or None)' if none else ''}, got {value!r}")
+
+
 def check_seed(seed, name: str = "--seed") -> int:
     """A random seed as NumPy and scikit-learn take it: a whole number in ``[0, 2**32 - 1]``."""
     return check_range(name, seed, 0, MAX_SEED, integer=True)

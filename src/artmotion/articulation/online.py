@@ -66,7 +66,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from artmotion.articulation.models import MAX_COORD, POINT_MODELS, as_points3, make_model
-from artmotion.errors import InputError, check_range, float_array
+from artmotion.errors import InputError, check_bool, check_range, float_array
 from artmotion.filters import taylor_model, taylor_transition
 from artmotion.params import Params
 
@@ -514,6 +514,8 @@ class OnlineEstimator(Params):
         check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("refit_growth", refit_growth, 1.0, 1e6, lo_open=True)
         check_range("temperature", temperature, 0.0, 1e3, lo_open=True)
+        for name, flag in (("refit", refit), ("confirm_static", confirm_static), ("hold", hold)):
+            check_bool(name, flag)
         try:
             names = [models] if isinstance(models, str) else list(models)
         except TypeError:

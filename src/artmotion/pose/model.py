@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from artmotion.errors import InputError, check_range, check_seed, float_array, need_package
+from artmotion.errors import InputError, check_bool, check_range, check_seed, float_array, need_package
 from artmotion.io import atomic_path
 from artmotion.io.files import as_path, read_head
 from artmotion.pose import features as F
@@ -224,6 +224,8 @@ class PoseRegressor(BaseEstimator):
         ``fit``, not in ``__init__``: a parameter may be set after the model is made); the ranges
         are those :meth:`load` accepts in a model file. The model's own parameters are left as given."""
         _check_choices(feature=self.feature, method=self.method, inducing=self.inducing, net_mean=self.net_mean)
+        check_bool("progress", self.progress)
+        check_bool("augment", self.augment)
         cell, size, blur = self._crop_params()
 
         def count(name: str, lo: int) -> int:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_bool, check_range
 from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import check_experts
@@ -181,6 +181,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     from artmotion.tracking.detectors import Detector, check_detector, make_detector
 
     experts = _check_experts(experts)
+    check_bool("online", online)
+    check_bool("progress", progress)
     if isinstance(detector, str):
         check_detector(detector)
     elif not isinstance(detector, Detector):

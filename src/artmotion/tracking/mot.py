@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import check_bool, check_range
 from artmotion.geometry import clip_box
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import side_of, track_events
@@ -48,8 +48,7 @@ class MultiObjectTracker(OnlineTracker):
 
     def __init__(self, fps: float, width: int, height: int, experts=("det", "motion"),
                  config: TrackerConfig | None = None, online: bool = False):
-        if not isinstance(online, (bool, np.bool_)):
-            raise InputError(f"online must be True or False, got {online!r}")
+        check_bool("online", online)
         super().__init__(fps, width, height, experts=experts, config=config)
         self.online = bool(online)
         self.relabel: dict[int, int] = {}

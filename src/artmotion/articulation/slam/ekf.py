@@ -23,7 +23,7 @@ import sys
 import numpy as np
 
 from artmotion.articulation.slam.landmarks import MIN_RADIUS, Decision, Joint, LandmarkModels
-from artmotion.errors import InputError, check_range, float_array
+from artmotion.errors import InputError, check_bool, check_range, float_array
 
 __all__ = ["motion_model", "control_noise", "observe", "inverse_observation", "gate_threshold", "EKFSlam"]
 
@@ -165,7 +165,7 @@ def _check_arguments(x0, dt, alphas, range_std, bearing_std, n_max, *, articulat
     check_range("motion_var", motion_var, 0.0, math.inf, hi_open=True)
     check_range("undecided_var", undecided_var, 0.0, math.inf, hi_open=True)
     check_range("gate", gate, 0.0, 1.0, lo_open=True, hi_open=True)
-    if articulated:
+    if check_bool("articulated", articulated):
         # as OnlineEstimator (Algorithm 1) requires them
         check_range("threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
         min_samples = check_range("min_samples", min_samples, 3, 10**9, integer=True)
@@ -246,6 +246,10 @@ class EKFSlam:
             x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated, threshold=threshold,
             min_samples=min_samples, point_noise=point_noise, max_radius=max_radius, motion_var=motion_var,
             accel=accel, gate=gate, undecided_var=undecided_var)
+        check_bool("gating", gating, none=True)
+        for name, flag in (("delayed", delayed), ("joint_shift", joint_shift), ("joint_shape", joint_shape),
+                           ("joint_curve", joint_curve)):
+            check_bool(name, flag)
         self.dt = dt
         self.alphas = alphas
         self.R1 = np.diag([range_std**2, bearing_std**2])

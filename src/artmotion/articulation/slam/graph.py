@@ -41,7 +41,7 @@ from artmotion.articulation.slam.ekf import (
     observe,
 )
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_bool, check_range
 
 __all__ = ["GraphSlam", "moving_observation", "taylor_gap"]
 
@@ -168,6 +168,8 @@ class GraphSlam:
             x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated, threshold=threshold,
             min_samples=min_samples, point_noise=point_noise, max_radius=max_radius, motion_var=motion_var,
             accel=accel, gate=gate)
+        check_bool("gating", gating)
+        check_bool("history", history)
         if joint_noise is not None:
             check_range("joint_noise", joint_noise, 0.0, math.inf, hi_open=True)
         check_range("relinearize_threshold", relinearize_threshold, 0.0, math.inf, hi_open=True)

@@ -237,3 +237,16 @@ def test_a_filter_for_more_landmarks_than_memory_holds_is_refused():
     with pytest.raises(InputError, match="n_max must be a whole number in"):
         EKFSlam(np.zeros(3), 0.1, (0,) * 4, 0.1, 0.01, n_max=10**6)
     assert EKFSlam(np.zeros(3), 0.1, (0,) * 4, 0.1, 0.01, n_max=MAX_LANDMARKS).P.shape == (3 + 2 * MAX_LANDMARKS,) * 2
+
+
+def test_run_slam_refuses_what_is_not_a_simulated_run():
+    """``run_slam({})`` was a KeyError 'config'."""
+    from artmotion.articulation.slam.evaluate import run_slam
+    from artmotion.articulation.slam.world import make_world, simulate
+
+    sim = simulate(make_world(6, 0, 0, seed=0), 5, seed=0)
+    for bad in ({}, None, [], {**sim, "config": {}}, {**sim, "observations": sim["observations"][:2]},
+                {k: v for k, v in sim.items() if k != "dt"}):
+        with pytest.raises(InputError, match="sim must be a simulated run"):
+            run_slam(bad, "ekf")
+    assert len(run_slam(sim, "ekf")["poses"]) == 6

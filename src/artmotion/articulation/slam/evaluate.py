@@ -13,6 +13,7 @@ import numpy as np
 from artmotion.articulation.slam.ekf import EKFSlam, _wrap
 from artmotion.articulation.slam.world import (
     WORLDS,
+    SimConfig,
     World,
     _check_counts,
     _check_world_name,
@@ -36,6 +37,7 @@ BACKENDS: dict[str, tuple[str, dict]] = {
 def make_backend(name: str, sim: dict, **kwargs):
     """A fresh back end ``name`` (see :data:`BACKENDS`) set up for simulated run ``sim``."""
     _check_backend(name)
+    _check_run(sim)
     cfg = sim["config"]
     args = (sim["poses"][0], sim["dt"], cfg.alphas, cfg.range_std, cfg.bearing_std, sim["landmarks"].shape[1])
     kw = {**BACKENDS[name][1], **kwargs}
@@ -44,6 +46,19 @@ def make_backend(name: str, sim: dict, **kwargs):
 
         return GraphSlam(*args, **kw)
     return EKFSlam(*args, **kw)
+
+
+#: what :func:`~artmotion.articulation.slam.world.simulate` returns, and the back ends read
+_RUN_KEYS = ("poses", "controls", "observations", "landmarks", "dt", "config")
+
+
+def _check_run(sim) -> None:
+    """``sim`` looks like a run of :func:`~artmotion.articulation.slam.world.simulate` (a mapping
+    with its keys, a :class:`SimConfig` and one observation per control); else an :class:`InputError`."""
+    if not isinstance(sim, Mapping) or any(k not in sim for k in _RUN_KEYS) or not isinstance(sim["config"], SimConfig) \
+            or len(sim["observations"]) != len(sim["controls"]):
+        raise InputError(f"sim must be a simulated run as simulate() returns it (a dict of {', '.join(_RUN_KEYS)}), "
+                         f"got {reprlib.repr(sim)}")
 
 
 def _check_backend(name, what: str = "back end") -> None:

@@ -216,3 +216,11 @@ def test_a_model_whose_angles_are_not_numbers_is_named_not_written(rendered, tmp
     with pytest.raises(InputError, match="damaged pose model") as err:
         bad.predict(imgs, return_std=True)
     assert err.value.path == str(tmp_path / "bad.npz")
+
+
+def test_ragged_or_text_labels_are_an_input_error():
+    """Ragged label rows were NumPy's bare ValueError ("inhomogeneous shape")."""
+    X = np.random.default_rng(0).random((40, 6))
+    for Y in ([[1.0, 2.0]] * 39 + [[1.0]], [["a", "b"]] * 40):
+        with pytest.raises(InputError, match="labels must be an array of numbers"):
+            PoseRegressor().fit(X, Y, ["a", "b"])

@@ -328,7 +328,7 @@ class PoseRegressor(BaseEstimator):
         differences never straddle two groups. Without ``groups`` the rows are one sequence. On the
         same rows the filter is tuned (:func:`tune_filter`)."""
         p = self._params()
-        Y = np.asarray(Y, dtype=float)
+        Y = float_array(Y, "labels")
         if Y.ndim == 1:
             Y = Y[:, None]
         if Y.ndim != 2 or Y.shape[1] == 0:

@@ -158,6 +158,26 @@ def test_a_frame_one_pixel_off_is_an_error(mot_folder, size):
         list(seq.frames())
 
 
+@pytest.mark.parametrize("size", [(W - 1, H - 1), (W + 1, H), (1, 1)])
+@pytest.mark.parametrize("suffix", [".png", ".jpg"])
+def test_a_frame_one_pixel_off_is_an_error_at_reduced_size_too(mot_folder, size, suffix):
+    """A reduced decode rounds the size: 639x479 decodes to 640x480's half size, and was accepted
+    (tracking went on with a frame of another size); the error gave the reduced size doubled
+    (642x480 for 641x480). The header's size is checked, and named."""
+    for p in sorted((mot_folder / "img1").iterdir()):
+        img = cv2.imread(str(p))
+        p.unlink()
+        if p.name.startswith("000004"):
+            img = cv2.resize(img, size)
+        cv2.imwrite(str(p.with_suffix(suffix)), img)
+    ini = mot_folder / "seqinfo.ini"
+    ini.write_text(ini.read_text().replace("imExt=.png", f"imExt={suffix}"))
+    seq = open_sequence(mot_folder)
+    for reduce in (1, 2):
+        with pytest.raises(InputError, match=rf"000004\{suffix}: image size {size[0]}x{size[1]} differs from the sequence's "):
+            list(seq.frames(reduce=reduce))
+
+
 def test_frame_count_disagrees_with_seqinfo(mot_folder):
     shutil.copy(mot_folder / "img1" / "000006.png", mot_folder / "img1" / "000007.png")
     with pytest.raises(InputError, match="seqinfo.ini says 6 frames"):

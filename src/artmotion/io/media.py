@@ -275,6 +275,15 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     the decoded image, its pixels as stored (an EXIF orientation tag is not applied:
     :func:`exif_orientation`); raises :class:`InputError` for a missing, empty, damaged or
     undecodable file."""
+    return read_image_sized(path, flags)[0]
+
+
+def read_image_sized(path: str | os.PathLike, flags: int | None = None,
+                     expect: tuple[int, int] | None = None) -> tuple[np.ndarray, _Size]:
+    """:func:`read_image`, and the ``(width, height)`` the file's header states (JPEG, PNG, TIFF;
+    ``None`` for other formats): a reduced decode rounds the size, which the header does not.
+    ``expect``: a sequence's frame size, which a stated size other than it is an error for (before
+    the decoding)."""
     import cv2
 
     if "\x00" in os.fspath(path):
@@ -294,6 +303,9 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
     problem, size = _image_structure(buf)  # one walk: the file's structure and its stated size
     if problem is not None:
         raise InputError(problem, path=path)
+    if expect is not None and size is not None and tuple(size) != tuple(expect):
+        raise InputError(f"image size {size[0]}x{size[1]} differs from the sequence's {expect[0]}x{expect[1]}",
+                         path=path)
     if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise InputError(f"image of {size[0]}x{size[1]} pixels: larger than artmotion reads "
                          f"({MAX_IMAGE_PIXELS // 2**20} megapixels at most)", path=path)
@@ -304,7 +316,7 @@ def read_image(path: str | os.PathLike, flags: int | None = None) -> np.ndarray:
         raise InputError(f"corrupt image data ({damage})", path=path)
     if img is None or img.size == 0:
         raise InputError("cannot decode image (corrupt or not an image)", path=path)
-    return img
+    return img, size
 
 
 #: bit depths a 16-bit image file may hold (a 12-bit camera's 0-4095 in a 16-bit PNG)

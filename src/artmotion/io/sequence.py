@@ -34,6 +34,7 @@ from artmotion.io.media import (
     open_capture,
     read_frame,
     read_image,
+    read_image_sized,
     read_video_frame,
 )
 from artmotion.io.mot import MAX_FRAME
@@ -162,11 +163,12 @@ class Sequence:
             # OpenCV's reduced decoding reads 8 bits: frames of another depth are read whole, then reduced
             k, fit = (reduce, fits) if bits is None else (1, ({self.height}, {self.width}))
             for i, p in enumerate(self.images, start=1):
-                img = read_image(p, _REDUCED[reduce]) if bits is None else read_frame(p, bits)
+                # the header's size is checked where it states one (a reduced decode of 639x479 is 640x480's)
+                img = (read_image_sized(p, _REDUCED[reduce], expect=(self.width, self.height))[0] if bits is None
+                       else read_frame(p, bits))
                 if img.shape[0] not in fit[0] or img.shape[1] not in fit[1]:
-                    raise InputError(
-                        f"image size {img.shape[1] * k}x{img.shape[0] * k} differs from the sequence's "
-                        f"{self.width}x{self.height}", path=p)
+                    stated = f"about {img.shape[1] * k}x{img.shape[0] * k}" if k > 1 else f"{img.shape[1]}x{img.shape[0]}"
+                    raise InputError(f"image size {stated} differs from the sequence's {self.width}x{self.height}", path=p)
                 if k < reduce:
                     img = cv2.resize(img, (want[1], want[0]), interpolation=cv2.INTER_AREA)
                 yield i, img

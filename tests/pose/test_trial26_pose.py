@@ -162,3 +162,40 @@ def test_far_from_training_checks_its_standard_deviations(tmp_path):
     for bad in (np.ones((2, 5)), np.full((3, 2), np.nan), -std, "abc"):
         with pytest.raises(InputError, match=r"std must be an (\(n, 2\) )?array"):
             reg.far_from_training(bad)
+
+
+def test_a_model_file_declaring_more_data_than_it_holds_or_tiny_hypers_is_one_line(tmp_path):
+    """A header declaring a 10^12-element array was a MemoryError (exit 1), a length scale of
+    1e-200 a ZeroDivisionError in the kernel (found by the file fuzzing of the thirty-fourth session)."""
+    import io
+    import zipfile
+
+    from artmotion.errors import InputError
+    from artmotion.pose.model import PoseRegressor
+
+    rng = np.random.default_rng(0)
+    crops = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(12)]
+    reg = PoseRegressor(n_components=4).fit(crops, rng.normal(size=(12, 2)), names=["a", "b"])
+    good = tmp_path / "m.npz"
+    reg.save(good)
+    with np.load(good) as z:
+        d = {k: z[k] for k in z.files}
+    tiny = tmp_path / "tiny.npz"
+    np.savez(tiny, **{**d, "hypers": np.full_like(d["hypers"], 1e-200)})
+    with pytest.raises(InputError, match=r"tiny.npz: corrupt artmotion pose model: 'hypers'"):
+        PoseRegressor.load(tiny).predict(crops)
+    hdr = b"{'descr': '<f4', 'fortran_order': False, 'shape': (1000000, 1000000), }"
+    pad = 64 - (10 + len(hdr) + 1) % 64
+    npy = b"\x93NUMPY\x01\x00" + (len(hdr) + pad + 1).to_bytes(2, "little") + hdr + b" " * pad + b"\n" + b"\0" * 64
+    huge = tmp_path / "huge.npz"
+    with zipfile.ZipFile(huge, "w") as zf:
+        for k, v in d.items():
+            if k == "X":
+                zf.writestr("X.npy", npy)
+            else:
+                b = io.BytesIO()
+                np.save(b, v)
+                zf.writestr(k + ".npy", b.getvalue())
+    with pytest.raises(InputError, match=r"huge.npz: corrupt artmotion pose model: array 'X.npy' declares shape"):
+        PoseRegressor.load(huge)
+    assert np.isfinite(PoseRegressor.load(good).predict(crops)).all()

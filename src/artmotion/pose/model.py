@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -66,6 +67,10 @@ def _threads():
 
 #: largest count a parameter (steps, inducing inputs, neighbours, ...) may be
 _MAX_COUNT = 2**31 - 1
+#: a model file's arrays together (uncompressed) at most this many bytes
+_MAX_MODEL_BYTES = 4 * 2**30
+#: hyper-parameters of a model file (length scale, signal and noise variance) within [this, 1 / this]
+_MIN_HYPER = 1e-30
 
 
 @functools.cache
@@ -620,8 +625,11 @@ class PoseRegressor(BaseEstimator):
         if read_head(path, 4, missing="model file not found") != b"PK\x03\x04":
             raise InputError("not an artmotion pose model (not a NumPy .npz file)", path=path)
         try:
+            _check_npz_sizes(path)
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
+        except InputError as exc:
+            raise InputError(exc.reason, path=path) from None
         # (a damaged array header reaches NumPy's header tokenizer: TokenError, SyntaxError)
         # (a damaged compression-method field: zipfile's NotImplementedError)
         except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError, tokenize.TokenError,
@@ -643,6 +651,27 @@ class PoseRegressor(BaseEstimator):
             raise InputError(f"corrupt artmotion pose model: {type(exc).__name__} {exc}", path=path) from None
         reg.source_ = path      # (named by predict's error should the model give what is not a number)
         return reg
+
+
+def _check_npz_sizes(path: Path) -> None:
+    """Every array of the ``.npz`` at ``path`` holds the data its header declares, and all of them
+    together at most :data:`_MAX_MODEL_BYTES`, checked from the zip's directory and the arrays'
+    headers before any array is read: a header declaring a terabyte (or a compressed "bomb") was a
+    MemoryError, or memory filled before the model was refused. An :class:`InputError` otherwise."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as zf:
+        members = zf.infolist()
+        if sum(m.file_size for m in members) > _MAX_MODEL_BYTES:
+            raise InputError(f"not an artmotion pose model (its arrays hold more than {_MAX_MODEL_BYTES / 2**30:g} GiB)")
+        for m in members:
+            with zf.open(m) as fh:
+                version = np.lib.format.read_magic(fh)
+                shape, _, dtype = (np.lib.format.read_array_header_1_0(fh) if version == (1, 0)
+                                   else np.lib.format.read_array_header_2_0(fh))
+                if math.prod(shape) * dtype.itemsize > m.file_size:
+                    raise InputError(f"corrupt artmotion pose model: array {m.filename!r} declares shape {shape}, "
+                                     f"more data than the file holds")
 
 
 def check_views(views, n: int) -> np.ndarray:
@@ -758,8 +787,8 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
     if n < 1 or dim < 1:
         raise InputError("no training inputs")
     hypers = _array(d, "hypers", (k, 3))
-    if np.any(hypers <= 0):
-        raise InputError("'hypers' (length, signal and noise variance) must be positive")
+    if not np.all((hypers >= _MIN_HYPER) & (hypers <= 1.0 / _MIN_HYPER)):   # (a length of 1e-200 squares to 0)
+        raise InputError(f"'hypers' (length, signal and noise variance) must lie in [{_MIN_HYPER:g}, {1 / _MIN_HYPER:g}]")
     Ys = _array(d, "Ys", (n, k))
     y_mean, y_std = _array(d, "y_mean", (k,)), _array(d, "y_std", (k,))
     var_scale, accel_var = _array(d, "var_scale", (k,)), _array(d, "accel_var", (k,))

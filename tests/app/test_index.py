@@ -273,3 +273,33 @@ def test_a_manifest_with_a_null_or_empty_source_is_refused(tmp_path, source):
     with EventIndex(tmp_path / "db2.sqlite") as idx:
         idx.add_run(d)
         assert len(idx.videos()) == 1
+
+
+def test_a_journal_left_by_an_interrupted_write_is_named(index, tmp_path, run_cli):
+    """A hot journal beside the index (a write killed mid-transaction) made search and index list,
+    which open the file read-only, say "the file is read-only"; SQLite must roll it back first."""
+    import shutil
+    import sqlite3
+
+    db = tmp_path / "db.sqlite"
+    index.close()
+    work = tmp_path / "work.sqlite"
+    shutil.copy(db, work)
+    c = sqlite3.connect(work, isolation_level=None)
+    c.execute("PRAGMA cache_size = 1")
+    c.execute("BEGIN IMMEDIATE")
+    c.execute("UPDATE sentences SET sentence = sentence || ' X'")
+    for _ in range(200):
+        c.execute("INSERT INTO sentences(video_id, sentence, tracks) VALUES (1, ?, '[1]')", ("j" * 400,))
+    crashed = tmp_path / "crashed.sqlite"
+    shutil.copy(work, crashed)
+    shutil.copy(tmp_path / "work.sqlite-journal", tmp_path / "crashed.sqlite-journal")
+    c.execute("ROLLBACK")
+    c.close()
+    for args in (("search", "person exits", "--db", crashed), ("index", "list", "--db", crashed)):
+        code, _, err = run_cli(*args)
+        assert code == 2 and "an interrupted write left crashed.sqlite-journal beside it" in err, err
+        assert err.count("\n") == 1
+    sqlite3.connect(crashed).execute("PRAGMA integrity_check").fetchall()  # a client that writes rolls it back
+    code, out, err = run_cli("search", "person exits", "--db", crashed)
+    assert code == 0 and "Person 1 exits to the right" in out and " X" not in out, err

@@ -254,6 +254,13 @@ class EventIndex:
             # ValueError, TypeError: text that is not UTF-8, a column that is not the JSON it should be
             msg = str(exc) if isinstance(exc, sqlite3.DatabaseError) else f"unreadable contents: {type(exc).__name__}"
             if "readonly" in msg or "read-only" in msg:
+                journal = self.path.with_name(self.path.name + "-journal")
+                if not self.write and journal.is_file() and journal.stat().st_size:
+                    # (a hot journal: SQLite must roll it back, a write, before anyone reads the file)
+                    raise InputError(f"an interrupted write left {journal.name} beside it: SQLite must roll it back, "
+                                     "a write, before the index can be read; the next 'artmotion index add' to it "
+                                     f"does, or: sqlite3 {self.path.name} 'PRAGMA integrity_check'",
+                                     path=self.path) from None
                 raise InputError("cannot write the index: the file is read-only", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "full" in msg:
                 raise InputError(f"cannot write the index: {msg}", path=self.path) from None

@@ -645,3 +645,13 @@ def test_a_file_name_that_is_no_name_is_an_input_error(tmp_path):
         check_text(b"/tmp/caf\xe9")
     assert err.value.path == os.fsdecode(b"/tmp/caf\xe9")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_event_repeated_on_two_lines_is_an_error(tmp_path):
+    """A repeated line of an events file was told twice by describe (a repeated results row is refused)."""
+    p = tmp_path / "ev.jsonl"
+    write_events(p, [{"type": "enter", "frame": 1, "tracks": [1]}, {"type": "exit", "frame": 9, "tracks": [1]}])
+    again = '{"tracks": [1], "frame": 1, "type": "enter"}'      # the first event, its keys in another order
+    p.write_text(p.read_text() + again + "\n")
+    with pytest.raises(InputError, match=r"ev.jsonl:3: the same event as line 1"):
+        read_events(p)

@@ -131,9 +131,12 @@ def event_problem(ev) -> str | None:
 
 
 def read_events(path: str | os.PathLike) -> list[dict]:
-    """Read and validate an events file; raise :class:`InputError` naming file and line."""
+    """Read and validate an events file; raise :class:`InputError` naming file and line. An event
+    repeated (the same object on two lines) is an error, as a repeated row of a results file is:
+    it would be told twice."""
     path = Path(path)
     events = []
+    seen: dict[str, int] = {}
     for lineno, line in enumerate(read_text(path, "an events file").split("\n"), start=1):
         if not line.strip():
             continue
@@ -150,6 +153,10 @@ def read_events(path: str | os.PathLike) -> list[dict]:
                 problem = f"{where} is a number out of range: it overflows to infinity (numbers must be finite)"
         if problem is not None:
             raise InputError(problem, path=path, line=lineno)
+        key = json.dumps(ev, sort_keys=True)
+        if key in seen:
+            raise InputError(f"the same event as line {seen[key]} (a line repeated)", path=path, line=lineno)
+        seen[key] = lineno
         events.append(ev)
     return events
 

@@ -329,3 +329,14 @@ def test_finish_takes_a_length_of_at_least_the_last_frame():
             t.finish(bad)
     rows, _ = t.finish(last + 3)
     assert len(rows)
+
+
+def test_an_empty_detection_file_is_an_error_not_nobody(sample_seq, tmp_path):
+    """An empty det.txt (or one of comments only) tracked nobody and said "0 tracks", exit 0."""
+    from artmotion.tracking import track
+
+    for text in ("", "\n\n"):
+        det = tmp_path / "det.txt"
+        det.write_text(text)
+        with pytest.raises(InputError, match=r"det.txt: no detections in the file: nothing to track"):
+            track(sample_seq, det=det)

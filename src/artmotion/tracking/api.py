@@ -199,8 +199,11 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     model = None
     if det_path is not None:
         dets, probabilities = read_detections(det_path)
+        if not dets:        # (empty data: tracking nobody would look like an answer)
+            raise InputError("no detections in the file: nothing to track (without a detection file, the "
+                             "built-in detector runs)", path=det_path)
         source_name = str(det_path) + ("" if probabilities else " (scores not in [0, 1]: ranked)")
-        if dets and max(dets) > seq.length and seq.images is not None:
+        if max(dets) > seq.length and seq.images is not None:
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)
     else:

@@ -303,3 +303,20 @@ def test_a_journal_left_by_an_interrupted_write_is_named(index, tmp_path, run_cl
     sqlite3.connect(crashed).execute("PRAGMA integrity_check").fetchall()  # a client that writes rolls it back
     code, out, err = run_cli("search", "person exits", "--db", crashed)
     assert code == 0 and "Person 1 exits to the right" in out and " X" not in out, err
+
+
+def test_index_list_keeps_a_video_on_one_line(tmp_path, run_cli):
+    """A run named with a line break split its entry over two lines, and a manifest without its
+    sequence (older runs have none) printed "None frames"."""
+    run = make_run(tmp_path, "x", [S("Person 1 stays (frames 1-9).", "stays", None, [1], 1, 9)])
+    manifest = json.loads((run / "run.json").read_text())
+    manifest["name"] = "a\nb\tc"
+    del manifest["sequence"]
+    (run / "run.json").write_text(json.dumps(manifest))
+    db = tmp_path / "db.sqlite"
+    code, _, err = run_cli("index", "add", run, "--db", db)
+    assert code == 0, err
+    code, out, err = run_cli("index", "list", "--db", db)
+    assert code == 0 and out == "a\\nb\\tc: frames unknown, 2 tracks, 0 events, 1 sentences\n", out + err
+    code, out, _ = run_cli("search", "person stays", "--db", db)
+    assert code == 0 and len(out.splitlines()) == 1 and "a\\nb\\tc" in out

@@ -55,8 +55,11 @@ def _add_runs(db: Path, runs: list[Path]) -> tuple[int, list[str | None]]:
 
 
 def _label(name: str, source: str | None, shared: set) -> str:
-    """A video's name, with its source path when another indexed video has the same name."""
-    return f"{name} ({source})" if name in shared and source else name
+    """A video's name, with its source path when another indexed video has the same name; a
+    character that would not print as itself (a line break in a file's name) escaped, so that one
+    video is one line."""
+    text = f"{name} ({source})" if name in shared and source else name
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _run_dirs(path: Path) -> list[Path]:
@@ -179,7 +182,8 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
         typer.echo(json.dumps(videos, indent=1, allow_nan=False))
         return
     for v in videos:
-        typer.echo(f"{_label(v['name'], v['source'], shared)}: {v['frames']} frames, {v['tracks']} tracks, "
+        frames = "frames unknown" if v["frames"] is None else f"{v['frames']} frames"     # (a manifest without them)
+        typer.echo(f"{_label(v['name'], v['source'], shared)}: {frames}, {v['tracks']} tracks, "
                    f"{v['events']} events, {v['sentences']} sentences")
 
 

@@ -655,3 +655,30 @@ def test_an_event_repeated_on_two_lines_is_an_error(tmp_path):
     p.write_text(p.read_text() + again + "\n")
     with pytest.raises(InputError, match=r"ev.jsonl:3: the same event as line 1"):
         read_events(p)
+
+
+def test_a_signal_while_the_swapped_out_outputs_are_removed_does_not_leave_them(tmp_path, monkeypatch):
+    """An interrupt while the earlier outputs, swapped out for the new ones, were being removed cut
+    the removal: they stayed for good as a hidden .NAME.xxxxxxxx.old.tmp folder, half deleted
+    (index add then refused the folder of runs). The removal now finishes first."""
+    import shutil
+    import signal
+
+    from artmotion.io import atomic
+
+    out = tmp_path / "out"
+    out.mkdir()
+    for k in range(5):
+        (out / f"old{k}.txt").write_text("old")
+    real = shutil.rmtree
+
+    def interrupted_rmtree(path, *args, **kwargs):
+        signal.raise_signal(signal.SIGINT)        # as Ctrl-C, at the first removal
+        real(path, *args, **kwargs)
+
+    monkeypatch.setattr(atomic.shutil, "rmtree", interrupted_rmtree)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.atomic_dir(out, replace=lambda p: True) as tmp:
+            (tmp / "new.txt").write_text("new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]

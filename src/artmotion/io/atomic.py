@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
+from artmotion._native import signals_held
 from artmotion.errors import InputError
 from artmotion.io.files import as_path
 
@@ -402,7 +403,10 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
         if swapped and not os.path.lexists(path):
             with contextlib.suppress(OSError):
                 os.replace(kept[0], path)         # put the earlier outputs back
-        _discard(kept)
+        # the earlier outputs, swapped out, are removed whole: a signal meanwhile (handed on after)
+        # cut the removal and left them hidden beside the new ones for good
+        with signals_held():
+            _discard(kept)
 
 
 def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:

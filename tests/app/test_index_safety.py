@@ -184,3 +184,28 @@ def test_two_commands_creating_one_index_at_once_keep_both_runs(tmp_path, run_cl
     assert code == 0 and "2 videos" in out, err
     with EventIndex(db, write=False) as idx:
         assert sorted(v["name"] for v in idx.videos()) == ["cam1", "cam2"]
+
+
+def test_a_file_size_limit_is_no_damaged_index(tmp_path):
+    """Under a file size limit (``ulimit -f``) SQLite reports a disk I/O error; the index said
+    "damaged index ...; build a new one" of a file left byte-identical."""
+    import resource
+    import sys
+
+    db = tmp_path / "db.sqlite"
+    with EventIndex(db) as idx:
+        idx.add_run(_run(tmp_path / "r1"))
+    big = [{"sentence": f"Person 1 exits to the left, {'very ' * 200}far (frame 50).", "subject": "person",
+            "verb": "exits", "adjective": "left", "tracks": [1], "frame_start": 50, "frame_end": 50}] * 200
+    run2 = _run(tmp_path / "r2", source="/b.mp4", sentences=big)
+    before = _md5(db)
+    limit = db.stat().st_size + 4096
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    proc = subprocess.run([sys.executable, "-m", "artmotion", "index", "add", str(run2), "--db", str(db)],
+                          capture_output=True, text=True, preexec_fn=small_files, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "cannot write the index: disk I/O error" in proc.stderr and "damaged" not in proc.stderr
+    assert _md5(db) == before

@@ -264,6 +264,10 @@ class EventIndex:
                 raise InputError("cannot write the index: the file is read-only", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "full" in msg:
                 raise InputError(f"cannot write the index: {msg}", path=self.path) from None
+            if isinstance(exc, sqlite3.OperationalError) and "disk i/o error" in msg.lower():
+                # (a file size limit gives this, not "full": the file is as it was, not damaged)
+                raise InputError(f"cannot {'write' if self.write else 'read'} the index: disk I/O error (a full "
+                                 "disk, a file size limit or a failing device)", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "locked" in msg:
                 # (not damaged: advice to build a new one would throw a good index away)
                 raise InputError(f"the index is locked by another process writing to it (waited {BUSY_TIMEOUT:g} s); "

@@ -682,3 +682,16 @@ def test_a_signal_while_the_swapped_out_outputs_are_removed_does_not_leave_them(
             (tmp / "new.txt").write_text("new")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+
+
+def test_a_read_only_file_system_is_named_so(tmp_path, monkeypatch):
+    """On a read-only mount access() fails too: the check said "permission denied" (to root)."""
+    import os
+    from types import SimpleNamespace
+
+    from artmotion.io import atomic
+
+    monkeypatch.setattr(atomic.os, "statvfs", lambda p: SimpleNamespace(f_flag=os.ST_RDONLY))
+    monkeypatch.setattr(atomic.os, "access", lambda p, mode: False)
+    with pytest.raises(InputError, match="cannot write: read-only file system"):
+        atomic.check_can_create_in(tmp_path)

@@ -351,14 +351,14 @@ def check_can_create_in(folder: Path) -> None:
         folder = folder.parent  # (a dangling link stops the climb: it is no folder)
     if not folder.is_dir():
         raise InputError("cannot write: a file is where a folder would be", path=folder)
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError("cannot write: permission denied", path=folder)
     try:
         read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
     except OSError:
         read_only = False
-    if read_only:
+    if read_only:       # (first: access() fails there too, and "permission denied" misled root)
         raise InputError("cannot write: read-only file system", path=folder)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError("cannot write: permission denied", path=folder)
 
 
 @contextlib.contextmanager

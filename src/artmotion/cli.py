@@ -7,6 +7,7 @@ line on stderr with exit status 2; set ``ARTMOTION_DEBUG=1`` to see tracebacks.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import re
@@ -121,16 +122,23 @@ class _Stdout:
     head -1``), the printing stops and the work goes on. A write raised ``BrokenPipeError`` out of
     the command before: it exited 1 without a word, and ``run`` left its ``--index`` unwritten.
     The file descriptor is pointed at /dev/null (what is still buffered, and the interpreter's
-    flush at exit, go there); everything else is the stream's."""
+    flush at exit, go there); everything else is the stream's. Any other failure to write (a
+    full disk, ``> /dev/full``) stops the printing the same way and is kept in :attr:`failed`: the
+    work goes on, and the command ends with one line saying what was not printed (it aborted the
+    command, without naming what could not be written)."""
 
     def __init__(self, stream):
         self._stream = stream
+        self.failed: OSError | None = None
 
     def write(self, text):
         try:
             return self._stream.write(text)
         except BrokenPipeError:
             self._closed()
+            return len(text)
+        except OSError as exc:
+            self._closed(exc)
             return len(text)
 
     def writelines(self, lines):
@@ -142,8 +150,12 @@ class _Stdout:
             self._stream.flush()
         except BrokenPipeError:
             self._closed()
+        except OSError as exc:
+            self._closed(exc)
 
-    def _closed(self) -> None:
+    def _closed(self, failed: OSError | None = None) -> None:
+        if failed is not None and self.failed is None:
+            self.failed = failed
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             try:
@@ -152,6 +164,8 @@ class _Stdout:
                 os.close(devnull)
         except (OSError, ValueError, AttributeError):    # no file descriptor (a test's capture): no more output
             self._stream = open(os.devnull, "w", encoding="utf-8")
+        with contextlib.suppress(OSError, ValueError):
+            self._stream.flush()        # (what was buffered goes to /dev/null, not again to the failing file)
 
     def __getattr__(self, name):
         return getattr(self._stream, name)
@@ -226,7 +240,13 @@ def _main(argv: list[str] | None) -> int:
         sys.stdout = _Stdout(stdout)
     try:
         code = _app_for(sys.argv[1:] if argv is None else argv)(args=argv, prog_name="artmotion", standalone_mode=False)
-        return code if isinstance(code, int) else 0
+        code = code if isinstance(code, int) else 0
+        sys.stdout.flush()
+        failed = getattr(sys.stdout, "failed", None)
+        if failed is not None and code == 0:
+            return _fail(f"error: standard output: cannot write: {failed.strerror or failed} (what the command "
+                         "printed is lost; the files it wrote are complete)", 2)
+        return code
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:

@@ -233,6 +233,23 @@ def test_a_closed_stdout_pipe_stops_the_printing_not_the_work(tmp_path):
     assert search.returncode == 0 and search.stderr == "", search.stderr
 
 
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_full_stdout_is_one_line_and_the_work_is_done(tmp_path):
+    """``artmotion run … --index I > /dev/full``: the printing's ENOSPC aborted the command after
+    its run folder, leaving the index unwritten, with "error: No space left on device" naming no
+    file. The work is done, and the one line says what was not printed."""
+    seq = small_sequence(tmp_path / "a")
+    db = tmp_path / "idx.sqlite"
+    with open("/dev/full", "w") as full:
+        run = subprocess.run([sys.executable, "-m", "artmotion", "run", seq, "--no-video", "--out", tmp_path / "run",
+                              "--index", db], stdout=full, stderr=subprocess.PIPE, text=True)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert run.stderr.startswith("artmotion: error: standard output: cannot write: No space left on device")
+    assert (tmp_path / "run" / "run.json").is_file()
+    with EventIndex(db, write=False) as idx:
+        assert [v["name"] for v in idx.videos()] == ["a"]
+
 # -- 8: a run whose files changed since ---------------------------------------------------------------
 
 

@@ -99,3 +99,23 @@ def test_a_batch_item_whose_name_is_not_text_leaves_the_others_to_run(tmp_path, 
     with EventIndex(tmp_path / "i.sqlite") as idx:      # the finished run goes into an index
         idx.add_run(tmp_path / "runs" / "good")
         assert [v["name"] for v in idx.videos()] == ["good"]
+
+
+def test_copies_of_one_source_at_two_paths_get_two_run_folders(tmp_path):
+    """Two copies of one video (same content, other paths) fell back to the same NAME-<fingerprint>
+    folder, the second run replacing the first without a word."""
+    import json
+
+    root = tmp_path / "runs"
+    (root / "cam").mkdir(parents=True)
+    first = tmp_path / "a" / "cam"
+    (root / "cam" / "run.json").write_text(json.dumps({"source": str(first.resolve()), "fingerprint": "f" * 16}))
+    outs = set()
+    for copy in ("b", "c"):
+        src = tmp_path / copy / "cam"
+        src.mkdir(parents=True)
+        out = default_run_dir(SimpleNamespace(name="cam", path=src), "f" * 16, root=root)
+        assert out.parent == root and out.name.startswith("cam-")
+        assert default_run_dir(SimpleNamespace(name="cam", path=src), "f" * 16, root=root) == out   # the same again
+        outs.add(out)
+    assert len(outs) == 2

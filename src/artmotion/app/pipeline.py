@@ -555,9 +555,13 @@ def _folder_name(name: str, fallback: str) -> str:
 
 def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> Path:
     """``runs/NAME``, unless it holds the run of another source (another video called the same,
-    e.g. every day's ``cam1.mp4``): then ``runs/NAME-<fingerprint>``, so no run replaces another's.
-    A name that is not one plain path component (:func:`_folder_name`) gives way to the source's
-    own file or folder name."""
+    e.g. every day's ``cam1.mp4``): then ``runs/NAME-<key>``, the key a hash of the source's path
+    and its content's fingerprint, so no run replaces another's (the fingerprint alone put copies
+    of one video at two paths in one folder, the second run replacing the first). A name that is
+    not one plain path component (:func:`_folder_name`) gives way to the source's own file or
+    folder name."""
+    import hashlib
+
     own = Path(seq.path).resolve()
     name = _folder_name(seq.name, _folder_name(own.stem if own.is_file() else own.name, "run"))
     out = Path(root) / name
@@ -566,4 +570,5 @@ def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> 
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         prev = None
     same = prev is None or (prev.get("fingerprint") == fingerprint and prev.get("source") == str(own))
-    return out if same else Path(root) / f"{name}-{fingerprint[:8]}"
+    key = hashlib.sha256(f"{own}\0{fingerprint}".encode("utf-8", "surrogateescape")).hexdigest()
+    return out if same else Path(root) / f"{name}-{key[:8]}"

@@ -83,6 +83,29 @@ def test_batch_reports_each_entry_it_does_not_run(tmp_path, run_cli):
     assert "0 done, 4 skipped, 0 failed" in out and "skipped  a: already finished" in out
 
 
+
+@pytest.mark.parametrize("change", ["det", "seqinfo"])
+def test_batch_runs_again_an_item_whose_detections_or_seqinfo_changed(tmp_path, run_cli, change):
+    """New detections, or another frame rate in seqinfo.ini, were skipped as "already finished":
+    the frames had not changed, and the run kept its stale results."""
+    archive = tmp_path / "archive"
+    seq = small_sequence(archive / "a")
+    out = tmp_path / "runs"
+    code, _, err = run_cli("batch", archive, "--out", out)
+    assert code == 0, err
+    code, text, err = run_cli("batch", archive, "--out", out)
+    assert code == 0 and "skipped  a: already finished" in text, text + err
+    if change == "det":
+        det = seq / "det" / "det.txt"
+        det.write_text("".join(line + "\n" for line in det.read_text().splitlines()[::2]))
+    else:
+        ini = seq / "seqinfo.ini"
+        ini.write_text(ini.read_text().replace("frameRate=25", "frameRate=5"))
+    code, text, err = run_cli("batch", archive, "--out", out)
+    assert code == 0 and "1 done, 0 skipped" in text, text + err
+    if change == "seqinfo":
+        assert json.loads((out / "a" / "run.json").read_text())["sequence"]["fps"] == 5
+
 # -- 2: an interrupted batch --------------------------------------------------------------------------
 
 

@@ -224,6 +224,7 @@ def run_pipeline(
         check_ids(gt, "ground truth", seq.gt_path)  # before the tracking, naming the file
         rules = check_rules(gt, rules, columns_of(seq.gt_path), seq.gt_path)
     fingerprint = source_fingerprint(seq)
+    inputs = input_digest(seq, det if tools is None else None)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     check_apart(out, (seq.folder,))
     check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
@@ -238,6 +239,7 @@ def run_pipeline(
             detection = {"det": det, "detector": detector, "detect_every": detect_every}
             manifest, tracks = _run_into(dst, seq, source, fingerprint, detection, object_class, experts, progress,
                                          video, pose, gt, rules)
+        manifest["inputs"] = inputs
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
@@ -400,7 +402,8 @@ def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = N
     # bits (12-bit ones nearly black): it is run again unless the frames are read that way now
     was = (run.get("sequence") or {}).get("bits")
     same_depth = seq.bits is None if was is None else was == frame_bits(seq)
-    return run.get("fingerprint") == fingerprint and same_depth
+    # (a manifest without the digest, of a run before it was kept, is run again)
+    return run.get("fingerprint") == fingerprint and run.get("inputs") == input_digest(seq) and same_depth
 
 
 def frame_bits(seq) -> int:
@@ -454,7 +457,7 @@ def _manifest_problem(run) -> str | None:
             return f"no {key!r}"
     if not isinstance(run["name"], str) or not run["name"]:
         return "'name' is not a non-empty string"
-    for key in ("source", "fingerprint", "batch", "detections"):
+    for key in ("source", "fingerprint", "inputs", "batch", "detections"):
         if key in run and run[key] is not None and not isinstance(run[key], str):
             return f"{key!r} is not a string"
     if "source" in run and not run["source"]:    # (older manifests have none; no run writes it empty or null)
@@ -540,6 +543,24 @@ def source_fingerprint(seq) -> str:
         if seq.video is not None and files[0].stat().st_size > 2 << 20:
             fh.seek(-(1 << 20), os.SEEK_END)
             h.update(fh.read())
+    return h.hexdigest()[:16]
+
+
+def input_digest(seq, det=None) -> str:
+    """A digest of what a run reads besides the frames: the sequence's ``seqinfo.ini``, its
+    detections (``det``, else the sequence's ``det/det.txt``) and ground truth, names and whole
+    contents (they are small). With :func:`source_fingerprint` it tells :func:`is_finished` that
+    a run is of its input as it is now: new detections or another frame rate in ``seqinfo.ini``
+    are run again (they were skipped as "already finished", the run's results stale)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    folder = Path(seq.path)
+    for what, p in (("seqinfo", folder / "seqinfo.ini" if folder.is_dir() else None),
+                    ("det", Path(det) if det is not None else seq.det_path), ("gt", seq.gt_path)):
+        if p is not None and Path(p).is_file():
+            h.update(f"{what}:{Path(p).stat().st_size};".encode())
+            h.update(Path(p).read_bytes())
     return h.hexdigest()[:16]
 
 

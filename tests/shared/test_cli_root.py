@@ -1,3 +1,5 @@
+import pytest
+
 from artmotion import __version__
 
 
@@ -34,3 +36,13 @@ def test_pruned_app_holds_only_the_named_command():
     assert len(_app_for(["track"]).registered_commands) == 1 and not _app_for(["track"]).registered_groups
     assert [g.name for g in _app_for(["slam", "simulate"]).registered_groups] == ["slam"]
     assert _app_for(["--help"]) is app and _app_for(["nope"]) is app and _app_for([]) is app
+
+
+@pytest.mark.parametrize("args, text", [
+    (("run", "--help"), "runs/NAME"), (("batch", "--help"), "FOLDER/artmotion-runs"),
+    (("search", "--help"), "ARTMOTION_INDEX"), (("articulation", "video", "--help"), "60-degree"),
+])
+def test_help_shows_the_defaults_it_describes(run_cli, args, text):
+    """Rich read "[default: runs/NAME]" in a help text as markup and dropped it ("Run folder .")."""
+    code, out, _ = run_cli(*args)
+    assert code == 0 and text in out.replace("│", " ").replace("\n", " ").replace("  ", " "), out

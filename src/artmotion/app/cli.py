@@ -17,7 +17,7 @@ DEFAULT_DB = "artmotion-index.sqlite"
 
 def _db_option():
     return typer.Option(
-        None, "--db", help=f"SQLite index file [default: $ARTMOTION_INDEX or ./{DEFAULT_DB}]", show_default=False
+        None, "--db", help=f"SQLite index file (default: $ARTMOTION_INDEX or ./{DEFAULT_DB})", show_default=False
     )
 
 
@@ -77,7 +77,7 @@ def _run_dirs(path: Path) -> list[Path]:
 
 def run_cmd(
     source: Path = typer.Argument(..., help="MOTChallenge sequence folder, video file or image folder."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Run folder [default: runs/NAME]."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Run folder (default: runs/NAME, or runs/NAME-<key> when that holds another source's run)."),
     det: Optional[Path] = typer.Option(None, "--det", help="Detections (MOTChallenge text) instead of the built-in detector."),
     detector: str = typer.Option("auto", "--detector", metavar="auto|ssdlite|hog",
                                  help="Built-in person detector when there are no detections (auto: ssdlite when "
@@ -219,7 +219,7 @@ def search_cmd(
 
 def batch_cmd(
     folder: Path = typer.Argument(..., help="Folder of sequences (MOTChallenge folders, videos, image folders)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Where run folders go [default: FOLDER/artmotion-runs]."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Where run folders go (default: FOLDER/artmotion-runs)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local Dask workers (processes)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
     force: bool = typer.Option(False, "--force", help="Re-run items that already finished."),

@@ -142,7 +142,7 @@ def video(
     source: Path = typer.Argument(..., help="A video file or a folder of frames."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for result.json and parts.png (tracks by part, axes)."),
-    focal: Optional[float] = typer.Option(None, "--focal", help="Focal length in pixels [default: a 60-degree field of view]."),
+    focal: Optional[float] = typer.Option(None, "--focal", help="Focal length in pixels (default: a 60-degree field of view)."),
     max_parts: int = typer.Option(3, "--max-parts", help="Most moving parts to look for."),
     seed: int = typer.Option(0, "--seed", help="Random seed of the part search (RANSAC)."),
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (frames/s), in place of the input's own: "

@@ -77,7 +77,8 @@ def _run_dirs(path: Path) -> list[Path]:
 
 def run_cmd(
     source: Path = typer.Argument(..., help="MOTChallenge sequence folder, video file or image folder."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Run folder (default: runs/NAME, or runs/NAME-<key> when that holds another source's run)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Run folder (default: runs/NAME, or runs/NAME-<key> when that "
+                                                             "holds another source's run)."),
     det: Optional[Path] = typer.Option(None, "--det", help="Detections (MOTChallenge text) instead of the built-in detector."),
     detector: str = typer.Option("auto", "--detector", metavar="auto|ssdlite|hog",
                                  help="Built-in person detector when there are no detections (auto: ssdlite when "
@@ -171,7 +172,8 @@ def index_add(
 
 
 @index_app.command("list")
-def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(False, "--json")):
+def index_list(db: Optional[Path] = _db_option(),
+               as_json: bool = typer.Option(False, "--json", help="Print the videos as JSON.")):
     """List the indexed videos with their counts of tracks, events and sentences."""
     from artmotion.app.index import EventIndex
 
@@ -190,7 +192,7 @@ def index_list(db: Optional[Path] = _db_option(), as_json: bool = typer.Option(F
 def search_cmd(
     query: str = typer.Argument(..., help='What to find, e.g. "person exits left" or "person 3 merges".'),
     video: Optional[str] = typer.Option(None, "--video", help="Only this video: its name or its source (index list)."),
-    limit: int = typer.Option(20, "--limit", min=1),
+    limit: int = typer.Option(20, "--limit", min=1, help="Most hits to print, best first."),
     as_json: bool = typer.Option(False, "--json", help="Print the hits as JSON."),
     db: Optional[Path] = _db_option(),
 ):

@@ -325,3 +325,30 @@ def test_run_says_why_ground_truth_gave_no_metrics(tmp_path, run_cli, sample_seq
     code, out, err = run_cli("run", small_sequence(sample_seq, tmp_path / "full", n=4), "--out", tmp_path / "r2",
                              "--no-video")
     assert code == 0 and "metrics:" in out and "no metrics" not in err
+
+
+def test_a_detection_reaching_far_beyond_the_image_is_described(tmp_path):
+    """A valid box whose centre lies far left of the image (it still overlaps it) made run fail
+    after all its work: describe's check that a given image size fits the boxes ("is the image
+    size right?") ran on the frames' own size."""
+    from conftest import SAMPLE
+
+    seq = small_sequence(SAMPLE, tmp_path / "wide", n=10)
+    (seq / "det" / "det.txt").write_text("".join(f"{f},-1,-2000,100,2100,80,0.9,-1,-1,-1\n" for f in range(1, 11)))
+    (seq / "gt" / "gt.txt").unlink()
+    res = run_pipeline(seq, tmp_path / "run", video=False)
+    assert res.sentences and (tmp_path / "run" / "run.json").is_file()
+
+
+def test_describe_checks_a_given_size_unless_it_is_known():
+    import numpy as np
+
+    from artmotion.errors import InputError
+    from artmotion.language.describe import describe
+
+    rows = np.array([[f, 1, -2000, 100, 2100, 80, 1, -1, -1, -1] for f in range(1, 11)], dtype=float)
+    with pytest.raises(InputError, match="is the image size right"):
+        describe(rows, [], image_size=(640, 480))
+    assert describe(rows, [], image_size=(640, 480), size_known=True)
+    with pytest.raises(InputError, match="size_known must be True or False"):
+        describe(rows, [], image_size=(640, 480), size_known="yes")

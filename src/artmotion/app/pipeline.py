@@ -92,7 +92,8 @@ def describe_run(tracks, events, width, height, fps, object_class: str = "person
     frame_end``. ``poses`` maps a track id to its (frames, opening angles) for "opens"/"closes"."""
     from artmotion.language.describe import describe
 
-    triplets = list(describe(tracks, events, classes=(object_class, {}), image_size=(width, height), fps=fps))
+    triplets = list(describe(tracks, events, classes=(object_class, {}), image_size=(width, height), fps=fps,
+                             size_known=True))
     empty = np.empty((0, 10))
     for tid, pose in sorted((poses or {}).items()):
         triplets += describe(empty, [], pose=pose, pose_subject=object_class, pose_track=tid, fps=fps)

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from artmotion.errors import InputError, check_range, float_array
+from artmotion.errors import InputError, check_bool, check_range, float_array
 from artmotion.geometry import box_center
 from artmotion.io.events import EVENT_TYPES, event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
@@ -595,6 +595,7 @@ def describe(
     image_size: tuple[float, float] | None = None,
     fps: float | None = None,
     params: DescribeParams | None = None,
+    size_known: bool = False,
 ) -> list[Triplet]:
     """Triplets (with their sentences) for tracks, events and a pose sequence, ordered by frame.
 
@@ -603,7 +604,9 @@ def describe(
     pose); ``open_above``/``close_below`` None (automatic) or finite angles (:func:`pose_changes`).
     ``classes``: ``(default class, {track id: class})``, names as text. ``params``: a
     :class:`DescribeParams` (checked by :meth:`DescribeParams.checked`). Bad input is an
-    :class:`InputError` naming the parameter."""
+    :class:`InputError` naming the parameter. ``image_size`` is checked against the boxes
+    (:func:`check_image_size`: a centre far outside means a wrong size) unless ``size_known``: the
+    frames' own size, e.g. a run's, where a detector's box may well reach far beyond the image."""
     p = _params(params)
     tracks = check_mot_rows(tracks, "tracks")
     check_ids(tracks, "tracks", None)
@@ -614,7 +617,7 @@ def describe(
     if fps is not None:
         check_range("fps", fps, MIN_FPS, MAX_FPS)
     if image_size is not None:
-        check_image_size(tracks, image_size)
+        check_image_size(tracks if not check_bool("size_known", size_known) else tracks[:0], image_size)
     default_cls, per_track = _check_classes(classes)
     if not _is_class_name(pose_subject):
         raise InputError(f"pose_subject must be a class name (letters, spaces and hyphens), got {pose_subject!r}")

@@ -6,6 +6,7 @@ import shutil
 import subprocess
 
 import cv2
+import numpy as np
 import pytest
 
 from artmotion.app import EventIndex, load_run, run_batch, run_pipeline
@@ -341,8 +342,6 @@ def test_a_detection_reaching_far_beyond_the_image_is_described(tmp_path):
 
 
 def test_describe_checks_a_given_size_unless_it_is_known():
-    import numpy as np
-
     from artmotion.errors import InputError
     from artmotion.language.describe import describe
 
@@ -352,3 +351,28 @@ def test_describe_checks_a_given_size_unless_it_is_known():
     assert describe(rows, [], image_size=(640, 480), size_known=True)
     with pytest.raises(InputError, match="size_known must be True or False"):
         describe(rows, [], image_size=(640, 480), size_known="yes")
+
+
+@pytest.mark.parametrize("size", [(1, 40), (40, 1), (2000, 1200)])
+def test_report_images_are_made_at_the_size_they_are_shown(tmp_path, size):
+    """A frame 1 pixel wide failed run in the report's halving (cv2.resize to a size of 0: an
+    internal error); the largest frames took 12 GB for images shown 960 pixels wide."""
+    import base64
+    import re
+
+    w, h = size
+    seq = tmp_path / "seq"
+    (seq / "img1").mkdir(parents=True)
+    (seq / "det").mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(1, 4):
+        cv2.imwrite(str(seq / "img1" / f"{i:06d}.png"), rng.integers(0, 255, (h, w, 3), dtype=np.uint8))
+    box = f"0,0,{max(1, w // 2)},{max(1, h // 2)}"
+    (seq / "det" / "det.txt").write_text("".join(f"{f},-1,{box},0.9,-1,-1,-1\n" for f in range(1, 4)))
+    (seq / "seqinfo.ini").write_text(f"[Sequence]\nname=s\nimDir=img1\nframeRate=25\nseqLength=3\n"
+                                     f"imWidth={w}\nimHeight={h}\nimExt=.png\n")
+    run_pipeline(seq, tmp_path / "run", video=False)
+    page = (tmp_path / "run" / "report.html").read_text()
+    shapes = [cv2.imdecode(np.frombuffer(base64.b64decode(u), np.uint8), cv2.IMREAD_COLOR).shape
+              for u in re.findall(r"data:image/jpeg;base64,([A-Za-z0-9+/=]+)", page)]
+    assert shapes and all(s[1] <= 960 and s[0] <= 2880 for s in shapes), shapes

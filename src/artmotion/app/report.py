@@ -20,6 +20,8 @@ from artmotion.io import atomic_write
 from artmotion.tracking.video import colour_of, draw_boxes
 
 MAX_KEY_FRAMES = 8
+#: the report's images are at most this wide (and three times this tall)
+DISPLAY_WIDTH = 960
 
 
 def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
@@ -36,7 +38,7 @@ def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
     return out
 
 
-def _data_uri(image: np.ndarray, max_width: int = 960) -> str:
+def _data_uri(image: np.ndarray, max_width: int = DISPLAY_WIDTH) -> str:
     if image.shape[1] > max_width:
         scale = max_width / image.shape[1]
         image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
@@ -95,23 +97,39 @@ def _timeline_svg(manifest: dict, length: int) -> str:
     return "".join(parts)
 
 
+def display_size(width: int, height: int) -> tuple[int, int, float]:
+    """The report's size for frames of ``width`` x ``height``: at most :data:`DISPLAY_WIDTH` wide
+    and three times that tall, at least 1 pixel a side, and the scale from the frames to it."""
+    scale = min(1.0, DISPLAY_WIDTH / width, 3 * DISPLAY_WIDTH / height)
+    return max(1, round(width * scale)), max(1, round(height * scale)), scale
+
+
 def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dict) -> Path:
-    """Render ``report.html`` for one run (``seq`` from :func:`artmotion.io.sequence.open_sequence`)."""
+    """Render ``report.html`` for one run (``seq`` from :func:`artmotion.io.sequence.open_sequence`).
+    Every image is made at the size it is shown (:func:`display_size`), the frames decoded at a
+    reduced size where they are larger: at the largest frames artmotion reads (2^27 pixels) the
+    key frames and the background's 25 samples at full or half size took 12 GB."""
     length = int(seq.length)
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())
+    dw, dh, scale = display_size(int(seq.width), int(seq.height))
+    shown = tracks.copy()
+    shown[:, 2:6] *= scale                  # the boxes in the report's pixels
+    reduce = max(k for k in (1, 2, 4, 8) if k * scale <= 1.0)
     key_images, background_samples = {}, []
-    with closing(seq.frames()) as frames:
+    with closing(seq.frames(reduce=reduce)) as frames:
         for fno, frame in frames:
+            if fno not in keys and fno not in samples:
+                continue
+            small = frame if frame.shape[:2] == (dh, dw) else cv2.resize(frame, (dw, dh), interpolation=cv2.INTER_AREA)
             if fno in keys:
-                key_images[fno] = draw_boxes(frame.copy(), tracks[tracks[:, 0] == fno])
+                key_images[fno] = draw_boxes(small.copy(), shown[shown[:, 0] == fno])
             if fno in samples:
-                background_samples.append(cv2.resize(frame, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+                background_samples.append(small)
     if background_samples:  # the median of frames spread over time removes moving people
         bg = np.median(np.stack(background_samples), axis=0).astype(np.uint8)
-        bg = cv2.resize(bg, (int(seq.width), int(seq.height)), interpolation=cv2.INTER_LINEAR)
     else:
-        bg = np.zeros((int(seq.height), int(seq.width), 3), np.uint8)
+        bg = np.zeros((dh, dw, 3), np.uint8)
     events_by_frame: dict[int, list[str]] = {}
     for s in manifest["sentences"]:
         events_by_frame.setdefault(int(s.get("frame_start") or 0), []).append(s["sentence"])
@@ -128,7 +146,7 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
         manifest=manifest,
         length=length,
         n_tracks=len(manifest["track_summary"]),
-        trajectories=_data_uri(draw_trajectories(bg, tracks)),
+        trajectories=_data_uri(draw_trajectories(bg, shown)),
         key_frames=[{"frame": f, "uri": _data_uri(img),
                      "sentences": [s for f0, ss in events_by_frame.items() if abs(f0 - f) <= 2 for s in ss]}
                     for f, img in sorted(key_images.items())],

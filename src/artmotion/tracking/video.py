@@ -35,11 +35,32 @@ def draw_boxes(img: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return img
 
 
+#: the annotated video's longer side at most (MPEG-4 Part 2 takes at most 8191), its sides at
+#: least (it takes no side of 1), and its frame rate at least (it takes none below 0.002 frames/s)
+MAX_VIDEO_SIDE = 4096
+MIN_VIDEO_SIDE = 2
+MIN_VIDEO_FPS = 1.0
+
+
+def video_geometry(width: int, height: int) -> tuple[float, tuple[int, int], tuple[int, int]]:
+    """How frames of ``width`` x ``height`` go into the annotated video: the scale (below 1 when the
+    longer side exceeds :data:`MAX_VIDEO_SIDE`), the scaled frame's size and the video's (the
+    scaled frame padded to :data:`MIN_VIDEO_SIDE` a side)."""
+    scale = min(1.0, MAX_VIDEO_SIDE / max(width, height))
+    inner = (max(1, round(width * scale)), max(1, round(height * scale)))
+    return scale, inner, (max(MIN_VIDEO_SIDE, inner[0]), max(MIN_VIDEO_SIDE, inner[1]))
+
+
 def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: float, size: tuple[int, int],
                     trail: int = 20, events: list[dict] | None = None) -> None:
-    """Draw ``tracks`` (MOT rows) over ``frames`` (iterable of ``(n, BGR)``) into an mp4 at ``path``."""
+    """Draw ``tracks`` (MOT rows) over ``frames`` (iterable of ``(n, BGR)``) into an mp4 at ``path``.
+    Frames whose longer side exceeds :data:`MAX_VIDEO_SIDE` are scaled down, a side of 1 pixel is
+    padded, and the video plays at ``fps`` but never below :data:`MIN_VIDEO_FPS` (the codec takes
+    none of those as they are: every frame size and rate artmotion reads gets its video)."""
     by_frame: dict[int, np.ndarray] = defaultdict(lambda: np.zeros((0, 10)))
-    tracks = np.asarray(tracks, dtype=float).reshape(-1, 10)
+    scale, inner, (w, h) = video_geometry(*size)
+    tracks = np.asarray(tracks, dtype=float).reshape(-1, 10).copy()
+    tracks[:, 2:6] *= scale
     for f in np.unique(tracks[:, 0]).astype(int):
         by_frame[f] = tracks[tracks[:, 0] == f]
     ev_by_frame = defaultdict(list)
@@ -47,18 +68,19 @@ def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: fl
         ev_by_frame[ev["frame"]].append(ev)
     trails: dict[int, deque] = defaultdict(lambda: deque(maxlen=trail))
     banner: list[tuple[int, str]] = []
-    w, h = size
     with atomic_path(path, suffix=".mp4") as tmp:
         # the stubs lack OpenCV's module-level alias of VideoWriter.fourcc
         fourcc = cv2.VideoWriter_fourcc(*"mp4v")  # type: ignore[attr-defined]
         with ffmpeg_quiet():
-            writer = cv2.VideoWriter(cv2_name(tmp), fourcc, float(fps or 25.0), (w, h))
+            writer = cv2.VideoWriter(cv2_name(tmp), fourcc, max(float(fps or 25.0), MIN_VIDEO_FPS), (w, h))
         if not writer.isOpened():
             raise InputError("cannot open a video writer (mp4v)", path=path)
         written = 0
         try:
             for n, img in frames:
-                img = img.copy()
+                img = img.copy() if scale == 1.0 else cv2.resize(img, inner, interpolation=cv2.INTER_AREA)
+                if (w, h) != inner:
+                    img = cv2.copyMakeBorder(img, 0, h - inner[1], 0, w - inner[0], cv2.BORDER_CONSTANT)
                 for r in by_frame[n]:
                     tid = int(r[1])
                     trails[tid].append(tuple(int(v) for v in box_center(r[2:6]) + [0, r[5] / 2]))

@@ -340,3 +340,18 @@ def test_an_empty_detection_file_is_an_error_not_nobody(sample_seq, tmp_path):
         det.write_text(text)
         with pytest.raises(InputError, match=r"det.txt: no detections in the file: nothing to track"):
             track(sample_seq, det=det)
+
+
+def test_frames_too_small_for_a_detector_name_the_input(tmp_path):
+    """A 2x2 video without detections: "a detector's frame of 2x2 pixels is too small", naming nothing."""
+    import cv2
+
+    from artmotion.tracking import track
+
+    path = tmp_path / "tiny.mp4"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25, (2, 2))
+    for _ in range(3):
+        w.write(np.zeros((2, 2, 3), np.uint8))
+    w.release()
+    with pytest.raises(InputError, match=r"tiny.mp4: frames of 2x2 pixels are too small for a detector"):
+        track(path)

@@ -207,6 +207,9 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)
     else:
+        if min(seq.width, seq.height) < 8:      # (before the work, naming the input)
+            raise InputError(f"frames of {seq.width}x{seq.height} pixels are too small for a detector (at least 8 "
+                             "a side): give detections (--det)", path=seq.path)
         model = make_detector(detector) if isinstance(detector, str) else detector
         dets, source_name = {}, model.name
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config, online=online)

@@ -281,6 +281,11 @@ def _main(argv: list[str] | None) -> int:
         sys.stderr.flush()
         _release_process_resources()
         os._exit(128 + exc.signum)
+    except MemoryError as exc:  # not a bug, nor the input's fault: what would not fit, in one line
+        if debug:
+            raise
+        return _fail(f"error: out of memory{f' ({exc})' if str(exc) else ''}: the machine could not hold what "
+                     "the command needed (fewer workers, or smaller frames or crops, need less)", 1)
     except Exception as exc:  # a bug: still one line, unless debugging
         if debug:
             raise

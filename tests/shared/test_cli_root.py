@@ -46,3 +46,35 @@ def test_help_shows_the_defaults_it_describes(run_cli, args, text):
     """Rich read "[default: runs/NAME]" in a help text as markup and dropped it ("Run folder .")."""
     code, out, _ = run_cli(*args)
     assert code == 0 and text in out.replace("│", " ").replace("\n", " ").replace("  ", " "), out
+
+
+def test_out_of_memory_is_one_line_not_a_bug(run_cli, monkeypatch, tmp_path):
+    """A MemoryError (the largest frames, many workers) was "internal error ... (a bug: please report it)"."""
+    import artmotion.tracking.metrics as metrics
+
+    def too_big(*args, **kwargs):
+        raise MemoryError("Unable to allocate 2.34 GiB")
+
+    monkeypatch.setattr(metrics, "evaluate", too_big)
+    gt = tmp_path / "gt.txt"
+    gt.write_text("1,1,0,0,10,10,1,-1,-1,-1\n")
+    code, _, err = run_cli("eval", gt, gt)
+    assert code == 1 and err.startswith("artmotion: error: out of memory (Unable to allocate 2.34 GiB)"), err
+    assert err.count("\n") == 1 and "bug" not in err
+
+
+def test_an_image_that_does_not_decode_with_a_sound_header_may_be_memory(monkeypatch, tmp_path):
+    """Under a memory limit OpenCV's decoder gives nothing for a valid 24-megapixel crop, which was
+    called "corrupt or not an image"."""
+    import cv2
+    import numpy as np
+
+    from artmotion.errors import InputError
+    from artmotion.io import media
+
+    p = tmp_path / "crop.png"
+    cv2.imwrite(str(p), np.zeros((30, 40, 3), np.uint8))
+    monkeypatch.setattr(cv2, "imdecode", lambda buf, flags: None)
+    with pytest.raises(InputError, match=r"crop.png: cannot decode the image of 40x30 pixels \(corrupt data, or not "
+                                         r"enough memory to decode it\)"):
+        media.read_image(p)

@@ -315,6 +315,9 @@ def read_image_sized(path: str | os.PathLike, flags: int | None = None,
     if damage:
         raise InputError(f"corrupt image data ({damage})", path=path)
     if img is None or img.size == 0:
+        if size is not None:        # (a sound header: OpenCV's decoder also gives nothing when memory runs out)
+            raise InputError(f"cannot decode the image of {size[0]}x{size[1]} pixels (corrupt data, or not enough "
+                             "memory to decode it)", path=path)
         raise InputError("cannot decode image (corrupt or not an image)", path=path)
     return img, size
 

@@ -134,8 +134,9 @@ def markdown(rep: dict) -> str:
         lines.append(f"| {c} | {COMPONENTS[c][2]} | " + " | ".join(
             f"{rows[w]['chosen']}: {rows[w]['held_out_error']:.3f}" for w in WORLDS) + " |")
     sizes = list(next(iter(rep["cost"].values())))
+    note = f"; {rep['cost_note']}" if rep.get("cost_note") else ""
     lines += ["", "Cost per step (ms; static landmarks around the path, nearest 20 in view observed, "
-              "last 100 steps of a lap):", "",
+              f"last 100 steps of a lap{note}):", "",
               "| back end | " + " | ".join(str(s) for s in sizes) + " |", "|---" * (len(sizes) + 1) + "|"]
     for name, per in rep["cost"].items():
         lines.append(f"| {BACKENDS[name][0]} | " + " | ".join(f"{per[s]:.2f}" for s in sizes) + " |")
@@ -156,6 +157,8 @@ def main() -> None:
     if a.cost_only:
         rep = json.loads((ROOT / "docs" / "slam_benchmark.json").read_text())
         rep["cost"] = cost(sizes)
+        rep["cost_note"] = (f"re-measured alone on {time.strftime('%Y-%m-%d')} (--cost-only); the ms/step of "
+                            "the tables above are of the full run's machine")
     else:
         rep = {"runs": runs, "scenarios": scenarios(runs, write), "ablation": ablation(max(3, runs // 2)),
                "cost": cost(sizes)}

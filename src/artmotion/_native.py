@@ -65,6 +65,7 @@ def _restore(handlers: list) -> None:
 
     if handlers:
         try:
-            signal.signal(*handlers[0])
+            if handlers[0][1] is not None:      # (a handler set from C, outside Python: none to put back)
+                signal.signal(*handlers[0])
         finally:
             _restore(handlers[1:])

@@ -2,7 +2,8 @@
 
 Each capability registers its commands from its own ``cli`` module. Errors the user can act on
 (:class:`artmotion.errors.ArtmotionError`, and OS errors such as a full disk) are printed as one
-line on stderr with exit status 2; set ``ARTMOTION_DEBUG=1`` to see tracebacks.
+line on stderr with exit status 2 (out of memory and bugs: 1); set ``ARTMOTION_DEBUG=1`` to see
+tracebacks.
 """
 
 from __future__ import annotations
@@ -206,8 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     console script calls it through :func:`run`).
 
     Every failure is one line on stderr: bad input (:class:`ArtmotionError`, a usage error, an
-    operating-system error such as a full disk) exits with 2; Ctrl-C with 130 and SIGTERM with 143,
-    after the outputs being written were removed; anything else is a bug (exit 1, with a hint).
+    operating-system error such as a full disk, a standard output that cannot be written) exits
+    with 2; Ctrl-C with 130 and SIGTERM with 143, after the outputs being written were removed; out
+    of memory with 1; anything else is a bug (exit 1, with a hint).
     Python's warnings (a library's RuntimeWarning) are not shown: inputs and results are checked.
     ``ARTMOTION_DEBUG=1`` shows tracebacks and warnings.
     """
@@ -241,11 +243,12 @@ def _main(argv: list[str] | None) -> int:
     try:
         code = _app_for(sys.argv[1:] if argv is None else argv)(args=argv, prog_name="artmotion", standalone_mode=False)
         code = code if isinstance(code, int) else 0
-        sys.stdout.flush()
-        failed = getattr(sys.stdout, "failed", None)
-        if failed is not None and code == 0:
-            return _fail(f"error: standard output: cannot write: {failed.strerror or failed} (what the command "
-                         "printed is lost; the files it wrote are complete)", 2)
+        if isinstance(sys.stdout, _Stdout):     # (no stdout at all: nothing was printed, nothing failed)
+            sys.stdout.flush()
+            failed = sys.stdout.failed
+            if failed is not None and code == 0:
+                return _fail(f"error: standard output: cannot write: {failed.strerror or failed} (what the "
+                             "command printed is lost; the work is done)", 2)
         return code
     except click.exceptions.Exit as exc:
         return exc.exit_code

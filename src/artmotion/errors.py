@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from typing import Literal, overload
 
 
 class ArtmotionError(Exception):
@@ -83,6 +84,10 @@ def check_range(name: str, value, lo, hi, *, lo_open: bool = False, hi_open: boo
     return int(value) if integer else value
 
 
+@overload
+def check_bool(name: str, value, *, none: Literal[False] = ...) -> bool: ...
+@overload
+def check_bool(name: str, value, *, none: bool) -> bool | None: ...
 def check_bool(name: str, value, *, none: bool = False) -> bool | None:
     """``value`` as a bool if it is one (Python's or NumPy's; ``None`` too with ``none``); else an
     :class:`InputError`: a string such as ``"no"`` is true to Python, so a switch given one would

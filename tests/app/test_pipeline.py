@@ -353,7 +353,7 @@ def test_describe_checks_a_given_size_unless_it_is_known():
         describe(rows, [], image_size=(640, 480), size_known="yes")
 
 
-@pytest.mark.parametrize("size", [(1, 40), (40, 1), (2000, 1200)])
+@pytest.mark.parametrize("size", [(1, 40), (40, 1), (2000, 1200), (40, 4000)])
 def test_report_images_are_made_at_the_size_they_are_shown(tmp_path, size):
     """A frame 1 pixel wide failed run in the report's halving (cv2.resize to a size of 0: an
     internal error); the largest frames took 12 GB for images shown 960 pixels wide."""

@@ -84,7 +84,7 @@ def test_batch_reports_each_entry_it_does_not_run(tmp_path, run_cli):
 
 
 
-@pytest.mark.parametrize("change", ["det", "seqinfo"])
+@pytest.mark.parametrize("change", ["det", "seqinfo", "gt"])
 def test_batch_runs_again_an_item_whose_detections_or_seqinfo_changed(tmp_path, run_cli, change):
     """New detections, or another frame rate in seqinfo.ini, were skipped as "already finished":
     the frames had not changed, and the run kept its stale results."""
@@ -98,6 +98,9 @@ def test_batch_runs_again_an_item_whose_detections_or_seqinfo_changed(tmp_path, 
     if change == "det":
         det = seq / "det" / "det.txt"
         det.write_text("".join(line + "\n" for line in det.read_text().splitlines()[::2]))
+    elif change == "gt":
+        gt = seq / "gt" / "gt.txt"
+        gt.write_text("".join(line + "\n" for line in gt.read_text().splitlines()[1:]))
     else:
         ini = seq / "seqinfo.ini"
         ini.write_text(ini.read_text().replace("frameRate=25", "frameRate=5"))
@@ -300,3 +303,24 @@ def test_index_add_refuses_a_run_whose_files_changed(tmp_path, run_cli, change):
     assert code == 2 and not (tmp_path / "new.sqlite").exists()
     manifest = json.loads((res.out_dir / "run.json").read_text())         # what the check goes by
     assert sorted(manifest["sha256"]) == ["events.jsonl", "results.txt", "sentences.txt"]
+
+
+def test_is_finished_says_no_when_the_detections_cannot_be_read(tmp_path, monkeypatch):
+    """The digest of the inputs was read outside the check that turns an unreadable input into
+    "not finished": an OSError escaped and stopped the whole batch's planning."""
+    from pathlib import Path
+
+    from artmotion.app.pipeline import is_finished, run_pipeline
+
+    seq = small_sequence(tmp_path / "a")
+    run_pipeline(seq, tmp_path / "run", video=False)
+    assert is_finished(tmp_path / "run", seq)
+    real = Path.read_bytes
+
+    def unreadable(self):
+        if self.name == "det.txt":
+            raise OSError(5, "Input/output error", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", unreadable)
+    assert not is_finished(tmp_path / "run", seq)

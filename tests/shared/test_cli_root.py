@@ -78,3 +78,16 @@ def test_an_image_that_does_not_decode_with_a_sound_header_may_be_memory(monkeyp
     with pytest.raises(InputError, match=r"crop.png: cannot decode the image of 40x30 pixels \(corrupt data, or not "
                                          r"enough memory to decode it\)"):
         media.read_image(p)
+
+
+def test_a_command_without_standard_output_still_succeeds(monkeypatch, tmp_path):
+    """With no sys.stdout at all (pythonw, a daemon) the check of what printing failed called
+    flush() on None: a command that succeeded said "internal error", exit 1."""
+    import sys
+
+    from artmotion.cli import main
+
+    gt = tmp_path / "gt.txt"
+    gt.write_text("1,1,0,0,10,10,1,-1,-1,-1\n")
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main(["eval", str(gt), str(gt)]) == 0

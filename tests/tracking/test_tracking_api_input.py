@@ -331,15 +331,18 @@ def test_finish_takes_a_length_of_at_least_the_last_frame():
     assert len(rows)
 
 
-def test_an_empty_detection_file_is_an_error_not_nobody(sample_seq, tmp_path):
-    """An empty det.txt (or one of comments only) tracked nobody and said "0 tracks", exit 0."""
+def test_an_empty_detection_file_is_said_where_the_detections_are_named(sample_seq, tmp_path, run_cli):
+    """An empty det.txt (or one of blank lines only) tracked nobody and said "0 tracks" and nothing
+    else: a scene with nobody in it, or a mistake, which the user must be told."""
     from artmotion.tracking import track
 
     for text in ("", "\n\n"):
         det = tmp_path / "det.txt"
         det.write_text(text)
-        with pytest.raises(InputError, match=r"det.txt: no detections in the file: nothing to track"):
-            track(sample_seq, det=det)
+        res = track(sample_seq, det=det)
+        assert len(res.tracks) == 0 and res.detector.endswith("(no detections in it: nothing tracked)")
+    code, out, err = run_cli("track", sample_seq, "--det", det, "--out", tmp_path / "r.txt", "--no-progress")
+    assert code == 0 and "det.txt (no detections in it: nothing tracked)" in out + err, out + err
 
 
 def test_frames_too_small_for_a_detector_name_the_input(tmp_path):
@@ -353,5 +356,5 @@ def test_frames_too_small_for_a_detector_name_the_input(tmp_path):
     for _ in range(3):
         w.write(np.zeros((2, 2, 3), np.uint8))
     w.release()
-    with pytest.raises(InputError, match=r"tiny.mp4: frames of 2x2 pixels are too small for a detector"):
+    with pytest.raises(InputError, match=r"tiny.mp4: frames of 2x2 pixels are too small for the built-in detector"):
         track(path)

@@ -259,15 +259,16 @@ class EventIndex:
                     # (a hot journal: SQLite must roll it back, a write, before anyone reads the file)
                     raise InputError(f"an interrupted write left {journal.name} beside it: SQLite must roll it back, "
                                      "a write, before the index can be read; the next 'artmotion index add' to it "
-                                     f"does, or: sqlite3 {self.path.name} 'PRAGMA integrity_check'",
+                                     f"does, or: sqlite3 '{self.path}' 'PRAGMA integrity_check'",
                                      path=self.path) from None
                 raise InputError("cannot write the index: the file is read-only", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "full" in msg:
                 raise InputError(f"cannot write the index: {msg}", path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "disk i/o error" in msg.lower():
                 # (a file size limit gives this, not "full": the file is as it was, not damaged)
-                raise InputError(f"cannot {'write' if self.write else 'read'} the index: disk I/O error (a full "
-                                 "disk, a file size limit or a failing device)", path=self.path) from None
+                raise InputError(("cannot write the index: disk I/O error (a full disk, a file size limit or a "
+                                  "failing device)") if self.write else "cannot read the index: disk I/O error",
+                                 path=self.path) from None
             if isinstance(exc, sqlite3.OperationalError) and "locked" in msg:
                 # (not damaged: advice to build a new one would throw a good index away)
                 raise InputError(f"the index is locked by another process writing to it (waited {BUSY_TIMEOUT:g} s); "

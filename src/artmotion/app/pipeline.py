@@ -225,7 +225,7 @@ def run_pipeline(
         check_ids(gt, "ground truth", seq.gt_path)  # before the tracking, naming the file
         rules = check_rules(gt, rules, columns_of(seq.gt_path), seq.gt_path)
     fingerprint = source_fingerprint(seq)
-    inputs = input_digest(seq, det if tools is None else None)
+    inputs = input_digest(seq, det)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     check_apart(out, (seq.folder,))
     check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
@@ -397,6 +397,7 @@ def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = N
     try:
         seq = open_sequence(source)
         fingerprint = source_fingerprint(seq)
+        inputs = input_digest(seq)
     except (InputError, OSError):       # unreadable now: not finished (running it again says why)
         return False
     # a manifest that does not say the depth may be of a run that read 16-bit frames by their top 8
@@ -404,7 +405,7 @@ def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = N
     was = (run.get("sequence") or {}).get("bits")
     same_depth = seq.bits is None if was is None else was == frame_bits(seq)
     # (a manifest without the digest, of a run before it was kept, is run again)
-    return run.get("fingerprint") == fingerprint and run.get("inputs") == input_digest(seq) and same_depth
+    return run.get("fingerprint") == fingerprint and run.get("inputs") == inputs and same_depth
 
 
 def frame_bits(seq) -> int:
@@ -549,8 +550,8 @@ def source_fingerprint(seq) -> str:
 
 def input_digest(seq, det=None) -> str:
     """A digest of what a run reads besides the frames: the sequence's ``seqinfo.ini``, its
-    detections (``det``, else the sequence's ``det/det.txt``) and ground truth, names and whole
-    contents (they are small). With :func:`source_fingerprint` it tells :func:`is_finished` that
+    detections (``det``, else the sequence's ``det/det.txt``) and ground truth, their sizes and
+    whole contents (they are small). With :func:`source_fingerprint` it tells :func:`is_finished` that
     a run is of its input as it is now: new detections or another frame rate in ``seqinfo.ini``
     are run again (they were skipped as "already finished", the run's results stale)."""
     import hashlib

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
+from artmotion.geometry import fit_size
 from artmotion.io import atomic_write
 from artmotion.tracking.video import colour_of, draw_boxes
 
@@ -38,10 +39,7 @@ def draw_trajectories(background: np.ndarray, tracks: np.ndarray) -> np.ndarray:
     return out
 
 
-def _data_uri(image: np.ndarray, max_width: int = DISPLAY_WIDTH) -> str:
-    if image.shape[1] > max_width:
-        scale = max_width / image.shape[1]
-        image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+def _data_uri(image: np.ndarray) -> str:
     ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 85])
     return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
 
@@ -97,22 +95,16 @@ def _timeline_svg(manifest: dict, length: int) -> str:
     return "".join(parts)
 
 
-def display_size(width: int, height: int) -> tuple[int, int, float]:
-    """The report's size for frames of ``width`` x ``height``: at most :data:`DISPLAY_WIDTH` wide
-    and three times that tall, at least 1 pixel a side, and the scale from the frames to it."""
-    scale = min(1.0, DISPLAY_WIDTH / width, 3 * DISPLAY_WIDTH / height)
-    return max(1, round(width * scale)), max(1, round(height * scale)), scale
-
-
 def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dict) -> Path:
     """Render ``report.html`` for one run (``seq`` from :func:`artmotion.io.sequence.open_sequence`).
-    Every image is made at the size it is shown (:func:`display_size`), the frames decoded at a
-    reduced size where they are larger: at the largest frames artmotion reads (2^27 pixels) the
-    key frames and the background's 25 samples at full or half size took 12 GB."""
+    Every image is made at the size it is shown (at most :data:`DISPLAY_WIDTH` wide and three times
+    that tall), the frames decoded at a reduced size where they are larger: at the largest frames
+    artmotion reads (2^27 pixels) the key frames and the background's 25 samples at full or half
+    size took 12 GB."""
     length = int(seq.length)
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())
-    dw, dh, scale = display_size(int(seq.width), int(seq.height))
+    scale, (dw, dh) = fit_size(int(seq.width), int(seq.height), DISPLAY_WIDTH, 3 * DISPLAY_WIDTH)
     shown = tracks.copy()
     shown[:, 2:6] *= scale                  # the boxes in the report's pixels
     reduce = max(k for k in (1, 2, 4, 8) if k * scale <= 1.0)

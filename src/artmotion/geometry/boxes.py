@@ -148,6 +148,13 @@ def union_box(boxes) -> np.ndarray:
     return xyxy_to_xywh(np.concatenate([xyxy[:, :2].min(0), xyxy[:, 2:].max(0)]))
 
 
+def fit_size(width: int, height: int, max_width: float, max_height: float) -> tuple[float, tuple[int, int]]:
+    """The scale (at most 1) that fits an image of ``width`` x ``height`` within ``max_width`` x
+    ``max_height``, and the scaled size, at least 1 pixel a side."""
+    scale = min(1.0, max_width / width, max_height / height)
+    return scale, (max(1, round(width * scale)), max(1, round(height * scale)))
+
+
 def clip_box(b, width: float, height: float) -> np.ndarray:
     """Clip boxes to the image ``[0, width] x [0, height]``."""
     xyxy = xywh_to_xyxy(b)

@@ -405,7 +405,7 @@ def atomic_dir(path: str | os.PathLike, replace: Callable[[Path], bool] | None =
                 os.replace(kept[0], path)         # put the earlier outputs back
         # the earlier outputs, swapped out, are removed whole: a signal meanwhile (handed on after)
         # cut the removal and left them hidden beside the new ones for good
-        with signals_held():
+        with signals_held(enabled=bool(kept)):
             _discard(kept)
 
 

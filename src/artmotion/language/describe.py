@@ -616,8 +616,9 @@ def describe(
             raise InputError(f"event {k + 1}: {problem}")
     if fps is not None:
         check_range("fps", fps, MIN_FPS, MAX_FPS)
-    if image_size is not None:
-        check_image_size(tracks if not check_bool("size_known", size_known) else tracks[:0], image_size)
+    size_known = check_bool("size_known", size_known)
+    if image_size is not None:      # (with size_known, only the size itself: no boxes to fit it)
+        check_image_size(tracks[:0] if size_known else tracks, image_size)
     default_cls, per_track = _check_classes(classes)
     if not _is_class_name(pose_subject):
         raise InputError(f"pose_subject must be a class name (letters, spaces and hyphens), got {pose_subject!r}")

@@ -178,7 +178,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     image files hold, when frames spread over them said it wrong (:meth:`Sequence.set_bits`).
     """
     from artmotion.tracking.detect import read_detections
-    from artmotion.tracking.detectors import Detector, check_detector, make_detector
+    from artmotion.tracking.detectors import MIN_DETECTOR_SIDE, Detector, check_detector, make_detector
 
     experts = _check_experts(experts)
     check_bool("online", online)
@@ -199,17 +199,16 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     model = None
     if det_path is not None:
         dets, probabilities = read_detections(det_path)
-        if not dets:        # (empty data: tracking nobody would look like an answer)
-            raise InputError("no detections in the file: nothing to track (without a detection file, the "
-                             "built-in detector runs)", path=det_path)
-        source_name = str(det_path) + ("" if probabilities else " (scores not in [0, 1]: ranked)")
-        if max(dets) > seq.length and seq.images is not None:
+        # (an empty file: a scene with nobody in it, or a mistake; said where the detections are named)
+        source_name = str(det_path) + ("" if probabilities else " (scores not in [0, 1]: ranked)") \
+            + ("" if dets else " (no detections in it: nothing tracked)")
+        if dets and max(dets) > seq.length and seq.images is not None:
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)
     else:
-        if min(seq.width, seq.height) < 8:      # (before the work, naming the input)
-            raise InputError(f"frames of {seq.width}x{seq.height} pixels are too small for a detector (at least 8 "
-                             "a side): give detections (--det)", path=seq.path)
+        if isinstance(detector, str) and min(seq.width, seq.height) < MIN_DETECTOR_SIDE:    # (before the work)
+            raise InputError(f"frames of {seq.width}x{seq.height} pixels are too small for the built-in detector "
+                             f"(at least {MIN_DETECTOR_SIDE} a side): give detections (--det)", path=seq.path)
         model = make_detector(detector) if isinstance(detector, str) else detector
         dets, source_name = {}, model.name
     tracker = MultiObjectTracker(seq.fps, seq.width, seq.height, experts=experts, config=config, online=online)

@@ -76,8 +76,12 @@ class Detector:
         return np.column_stack([boxes, scores]) if len(scores) else np.zeros((0, 5))
 
 
+#: the smallest frame side the built-in detectors take
+MIN_DETECTOR_SIDE = 8
+
+
 def _check_frame(frame: np.ndarray) -> None:
-    check_frame(frame, "a detector's frame", min_side=8)
+    check_frame(frame, "a detector's frame", min_side=MIN_DETECTOR_SIDE)
 
 
 def _nms(boxes: np.ndarray, scores: np.ndarray, min_score: float, iou: float) -> tuple[np.ndarray, np.ndarray]:

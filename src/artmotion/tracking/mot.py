@@ -33,6 +33,7 @@ import numpy as np
 
 from artmotion.errors import check_bool, check_range
 from artmotion.geometry import clip_box
+from artmotion.io.mot import MAX_FRAME
 from artmotion.tracking.config import TrackerConfig
 from artmotion.tracking.entry_exit import side_of, track_events
 from artmotion.tracking.groups import Group, collapse_group_flicker, group_events
@@ -75,7 +76,7 @@ class MultiObjectTracker(OnlineTracker):
         if length is None:
             length = self.last_frame
         else:
-            length = check_range("length", length, max(self.last_frame, 1), 10**9, integer=True)
+            length = check_range("length", length, max(self.last_frame, 1), MAX_FRAME, integer=True)
         for t in self.tracks:
             if t.first_box is None:
                 self._ended(t)

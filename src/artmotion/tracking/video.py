@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.geometry import box_center
+from artmotion.geometry import box_center, fit_size
 from artmotion.io import atomic_path
 from artmotion.io.media import check_written_video, cv2_name, ffmpeg_quiet
 
@@ -35,28 +35,27 @@ def draw_boxes(img: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return img
 
 
-#: the annotated video's longer side at most (MPEG-4 Part 2 takes at most 8191), its sides at
-#: least (it takes no side of 1), and its frame rate at least (it takes none below 0.002 frames/s)
-MAX_VIDEO_SIDE = 4096
+#: the annotated video's sides at most (MPEG-4 Part 2 takes at most 8191) and at least (it takes
+#: no side of 1), and its frame rate at least (it takes none below 0.002 frames/s; a margin)
+MAX_VIDEO_SIDE = 8000
 MIN_VIDEO_SIDE = 2
-MIN_VIDEO_FPS = 1.0
+MIN_VIDEO_FPS = 0.01
 
 
 def video_geometry(width: int, height: int) -> tuple[float, tuple[int, int], tuple[int, int]]:
-    """How frames of ``width`` x ``height`` go into the annotated video: the scale (below 1 when the
-    longer side exceeds :data:`MAX_VIDEO_SIDE`), the scaled frame's size and the video's (the
-    scaled frame padded to :data:`MIN_VIDEO_SIDE` a side)."""
-    scale = min(1.0, MAX_VIDEO_SIDE / max(width, height))
-    inner = (max(1, round(width * scale)), max(1, round(height * scale)))
+    """How frames of ``width`` x ``height`` go into the annotated video: the scale (below 1 when a
+    side exceeds :data:`MAX_VIDEO_SIDE`), the scaled frame's size and the video's (the scaled frame
+    padded to :data:`MIN_VIDEO_SIDE` a side)."""
+    scale, inner = fit_size(width, height, MAX_VIDEO_SIDE, MAX_VIDEO_SIDE)
     return scale, inner, (max(MIN_VIDEO_SIDE, inner[0]), max(MIN_VIDEO_SIDE, inner[1]))
 
 
 def write_annotated(path: str | os.PathLike, frames, tracks: np.ndarray, fps: float, size: tuple[int, int],
                     trail: int = 20, events: list[dict] | None = None) -> None:
     """Draw ``tracks`` (MOT rows) over ``frames`` (iterable of ``(n, BGR)``) into an mp4 at ``path``.
-    Frames whose longer side exceeds :data:`MAX_VIDEO_SIDE` are scaled down, a side of 1 pixel is
-    padded, and the video plays at ``fps`` but never below :data:`MIN_VIDEO_FPS` (the codec takes
-    none of those as they are: every frame size and rate artmotion reads gets its video)."""
+    Frames with a side over :data:`MAX_VIDEO_SIDE` are scaled down, a side of 1 pixel is padded,
+    and the video plays at ``fps`` but never below :data:`MIN_VIDEO_FPS` (the codec takes none of
+    those as they are: every frame size and rate artmotion reads gets its video)."""
     by_frame: dict[int, np.ndarray] = defaultdict(lambda: np.zeros((0, 10)))
     scale, inner, (w, h) = video_geometry(*size)
     tracks = np.asarray(tracks, dtype=float).reshape(-1, 10).copy()

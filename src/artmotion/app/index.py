@@ -27,7 +27,7 @@ import sqlite3
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_bool
 from artmotion.io.files import as_path, read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
@@ -179,7 +179,7 @@ class EventIndex:
         created; :func:`building` creates it atomically); ``write=False`` opens it read-only
         (listing, searching) and never creates it."""
         self.path = as_path(path, "an index")
-        self.write = write
+        self.write = check_bool("write", write)
         exists = self.path.exists()
         if exists:
             check_index(self.path)
@@ -234,6 +234,11 @@ class EventIndex:
 
         if not self.write:
             raise InputError("the index is open read-only", path=self.path)
+        runs = list(runs)               # (read twice: a generator was empty the second time, nothing added)
+        for k, item in enumerate(runs):
+            if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[1], dict)):
+                raise InputError(f"runs item {k + 1}: must be (run folder, manifest as load_run returns it), "
+                                 f"got {type(item).__name__}")
         for run_dir, run in runs:       # the files the manifest describes, as the run left them
             check_run_files(run_dir, run)
         added = []
@@ -273,6 +278,9 @@ class EventIndex:
                 # (not damaged: advice to build a new one would throw a good index away)
                 raise InputError(f"the index is locked by another process writing to it (waited {BUSY_TIMEOUT:g} s); "
                                  "try again when it is done", path=self.path) from None
+            if isinstance(exc, sqlite3.ProgrammingError) and "thread" in msg:
+                raise InputError("the index was opened in another thread: open it in this one (EventIndex(path))",
+                                 path=self.path) from None
             if isinstance(exc, sqlite3.ProgrammingError) and "closed" in msg:
                 raise InputError("the index is closed (open it again: EventIndex(path))", path=self.path) from None
             raise InputError(f"damaged index ({msg}); build a new one with 'artmotion index add'",
@@ -351,6 +359,10 @@ class EventIndex:
             from artmotion.errors import check_range
 
             limit = check_range("limit", limit, 1, 10**9, integer=True)
+        if isinstance(video, os.PathLike):
+            video = os.fspath(video)
+        if video is not None and not isinstance(video, str):    # (SQLite's binding error read as damage)
+            raise InputError(f"video must be a name or a source path, got {type(video).__name__}")
         q = parse_query(text)
         with self._errors():
             if video is not None:

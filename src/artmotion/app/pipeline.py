@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from artmotion import __version__
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_bool
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
 from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.events import event_problem
@@ -201,6 +201,7 @@ def run_pipeline(
     from artmotion.language.describe import parse_classes
     from artmotion.tracking import open_sequence
 
+    check_bool("video", video)
     t0 = time.perf_counter()
     word, per_track = parse_classes([object_class])   # the word the sentences name, checked as describe's
     if per_track:

@@ -610,6 +610,11 @@ def describe(
     p = _params(params)
     tracks = check_mot_rows(tracks, "tracks")
     check_ids(tracks, "tracks", None)
+    if events is not None:
+        try:
+            events = list(events)       # (read twice: a generator was empty the second time, its events lost)
+        except TypeError:
+            raise InputError(f"events must be a list of event dicts, got {type(events).__name__}") from None
     for k, ev in enumerate(events or []):       # types outside the grammar are passed over, unread
         problem = event_problem(ev) if not isinstance(ev, dict) or ev.get("type") in EVENT_TYPES else None
         if problem is not None:

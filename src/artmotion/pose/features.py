@@ -30,7 +30,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, float_array
 
 CROP_W, CROP_H = 64, 48  # the thesis' fixed size (width x height)
 FEATURES = ("hog", "lbp", "cnn")
@@ -94,8 +94,12 @@ def resize_crop(image: np.ndarray, size: tuple[int, int] = (CROP_W, CROP_H), blu
 
 
 def crop_box(frame: np.ndarray, box) -> np.ndarray:
-    """Crop ``box = (x, y, w, h)`` (pixels, top-left) from a frame, clipped to the image."""
-    x, y, w, h = (float(v) for v in box)
+    """Crop ``box = (x, y, w, h)`` (pixels, top-left) from a frame, clipped to the image; a box that
+    is not 4 finite numbers is an :class:`InputError` (NaN cropped the whole width)."""
+    b = float_array(box, "box")
+    if b.shape != (4,) or not np.isfinite(b).all():
+        raise InputError(f"box must be 4 finite numbers x, y, w, h, got {box!r}")
+    x, y, w, h = (float(v) for v in b)
     H, W = frame.shape[:2]
     x0, y0 = int(max(0, np.floor(x))), int(max(0, np.floor(y)))
     x1, y1 = int(min(W, np.ceil(x + w))), int(min(H, np.ceil(y + h)))

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from artmotion.errors import InputError, check_range, check_seed
+from artmotion.errors import InputError, check_bool, check_range, check_seed
 from artmotion.io import atomic_dir, atomic_write
 from artmotion.io.atomic import outputs_of
 from artmotion.io.media import write_image
@@ -370,7 +370,26 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
     stretches, each over its own tissue and tint (a training set that has seen one background
     learns that background). ``style``: the look of tool and tissue (:data:`STYLES`, or ``random``:
     a look of :func:`random_look` per scene); the same seed draws the same motion and scene in
-    every style."""
+    every style. The arguments are checked at the call, before the first frame is drawn."""
+    _check_rendering(n, seed, dark, motion, scenes, style, "n")
+    return _render(n, seed, dark, motion, scenes, style)
+
+
+def _check_rendering(n, seed, dark, motion, scenes, style, count: str) -> None:
+    """The options of :func:`render_sequence` and :func:`write_dataset` (``count``: the name ``n``
+    goes by), each an :class:`InputError` naming it."""
+    check_range(count, n, 1, MAX_POSES, integer=True)
+    check_seed(seed)
+    check_bool("dark", dark)
+    if not isinstance(motion, str) or motion not in MOTIONS:
+        raise InputError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
+    check_range("--scenes" if count.startswith("--") else "scenes", scenes, 1, n, integer=True)
+    if not isinstance(style, str) or style not in (*STYLES, "random"):
+        raise InputError(f"unknown style {style!r}; choose one of {', '.join(STYLES)}, random")
+
+
+def _render(n: int, seed: int, dark: bool, motion: str, scenes: int, style: str):
+    """:func:`render_sequence`'s frames, its arguments checked."""
     rng = np.random.default_rng([seed, 3])
     traj = MOTIONS[motion](n, rng)
     looks = ([random_look(np.random.default_rng([seed, 5, k])) for k in range(scenes)] if style == "random"
@@ -469,13 +488,9 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
-    check_range("--poses", n, 1, MAX_POSES, integer=True)
-    check_seed(seed)
-    if motion not in MOTIONS:
-        raise InputError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
-    check_range("--scenes", scenes, 1, n, integer=True)
-    if style not in (*STYLES, "random"):
-        raise InputError(f"unknown style {style!r}; choose one of {', '.join(STYLES)}, random")
+    _check_rendering(n, seed, dark, motion, scenes, style, "--poses")
+    check_bool("frames", frames)
+    check_bool("progress", progress)
     out = Path(out)
     with atomic_dir(out, replace=_is_rendering, outputs=RENDERING) as tmp:
         _write_dataset(tmp, n, seed, dark, frames, progress, motion, scenes, style)

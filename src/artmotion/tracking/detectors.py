@@ -57,11 +57,17 @@ class Detector:
         who = f"detector {self.name or type(self).__name__}"
         try:
             boxes, scores = out
-            boxes = np.asarray(boxes, dtype=float).reshape(-1, 4) if np.size(boxes) else np.zeros((0, 4))
+            boxes = np.asarray(boxes, dtype=float)
             scores = np.asarray(scores, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise InputError(f"{who}: detect(frame) must return (boxes (N, 4), scores (N,)), got "
                              f"{type(out).__name__}") from None
+        if not boxes.size:
+            boxes = np.zeros((0, 4))
+        elif boxes.shape == (4,):       # (one box)
+            boxes = boxes.reshape(1, 4)
+        elif boxes.ndim != 2 or boxes.shape[1] != 4:    # (rows of another length were re-cut into other boxes)
+            raise InputError(f"{who}: boxes must be an (N, 4) array x, y, w, h, got shape {boxes.shape}")
         if len(boxes) != len(scores):
             raise InputError(f"{who}: {len(boxes)} boxes but {len(scores)} scores")
         if not (np.isfinite(boxes).all() and np.isfinite(scores).all()):

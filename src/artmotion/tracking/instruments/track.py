@@ -34,8 +34,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_bool, check_range
 from artmotion.io.media import check_frame
+from artmotion.io.mot import MAX_COORD
 from artmotion.tracking.association import INF, assign
 from artmotion.tracking.camera import estimate_motion
 from artmotion.tracking.experts import Gaussian
@@ -83,8 +84,14 @@ def _moved(h: _Head, d: np.ndarray, px: float = 1.0) -> Gaussian:
 
 
 def _check_detections(detections, what: str) -> np.ndarray:
-    """``detections`` as a ``(k, 5)`` array of finite x, y, size, angle, score; else an :class:`InputError`."""
-    return finite_rows(detections, 5, what, "x, y, size, angle, score")
+    """``detections`` as a ``(k, 5)`` array of finite x, y, size, angle, score — a positive size, a
+    place within :data:`~artmotion.io.mot.MAX_COORD` pixels, a score in [0, 1] — else an
+    :class:`InputError` (a negative size and a score of 7 were tracked and written out)."""
+    D = finite_rows(detections, 5, what, "x, y, size, angle, score")
+    if (D[:, 2] <= 0).any() or (np.abs(D[:, :3]) > MAX_COORD).any() or ((D[:, 4] < 0) | (D[:, 4] > 1)).any():
+        raise InputError(f"{what}: each head needs a positive size, a place within {MAX_COORD:g} px and a score "
+                         "in [0, 1]")
+    return D
 
 
 class ToolTracker:
@@ -111,6 +118,16 @@ class ToolTracker:
     def __init__(self, detector, detect_std: float = 4.0, accel: float = 4.0, gate: float = 40.0,
                  birth: float = 0.4, coast: int = 0, max_miss: int = 15, klt: bool = True, merge: float = 15.0,
                  camera: bool = True, flow: bool = False):
+        for name, flag in (("klt", klt), ("camera", camera), ("flow", flow)):
+            check_bool(name, flag)
+        for name, value, lo in (("detect_std", detect_std, 0.0), ("accel", accel, 0.0), ("gate", gate, 0.0),
+                                ("merge", merge, 0.0)):
+            check_range(name, value, lo, 1e6, lo_open=True)
+        check_range("birth", birth, 0.0, 1.0)
+        check_range("coast", coast, 0, 10**6, integer=True)
+        check_range("max_miss", max_miss, 0, 10**6, integer=True)
+        if not callable(getattr(detector, "detect", None)):
+            raise InputError(f"detector must have a detect(frame) method (a ToolDetector), got {type(detector).__name__}")
         self.detector = detector
         self.detect_std = detect_std
         self.accel = accel

@@ -1,0 +1,146 @@
+"""The Python API of the less-used modules with odd arguments (a QA pass, thirty-fourth session):
+each case was a silently wrong result, or an error that blamed something else."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from artmotion.errors import InputError
+
+
+def test_describe_reads_a_generator_of_events_once():
+    """The events were checked in one pass and told in a second, which found the generator empty."""
+    from artmotion.language.describe import describe
+
+    rows = np.array([[f, 1, 10 + 5 * f, 100, 30, 80, 1, -1, -1, -1] for f in range(1, 41)]
+                    + [[f, 2, 400 - 3 * f, 120, 30, 80, 1, -1, -1, -1] for f in range(1, 41)], float)
+    evs = [{"type": "enter", "frame": 1, "tracks": [1], "side": "left"},
+           {"type": "exit", "frame": 40, "tracks": [2], "side": "left"}]
+    assert [t.sentence for t in describe(rows, iter(evs))] == [t.sentence for t in describe(rows, evs)]
+    with pytest.raises(InputError, match="events must be a list"):
+        describe(rows, 5)
+
+
+def _run_folder(root):
+    import json
+
+    d = root / "r"
+    d.mkdir()
+    (d / "run.json").write_text(json.dumps({
+        "name": "r", "source": "/videos/r.mp4", "sequence": {"length": 50, "fps": 25.0, "width": 640, "height": 480},
+        "track_summary": [{"id": 1, "first_frame": 1, "last_frame": 50, "boxes": 50}], "events": [],
+        "sentences": [{"sentence": "Person 1 stays in place (frames 1-50).", "subject": "person", "verb": "stays",
+                       "adjective": None, "tracks": [1], "frame_start": 1, "frame_end": 50}]}))
+    return d
+
+
+def test_index_add_runs_reads_a_generator_once_and_checks_its_items(tmp_path):
+    from artmotion.app import EventIndex, load_run
+
+    run = _run_folder(tmp_path)
+    with EventIndex(tmp_path / "i.sqlite") as idx:
+        assert len(idx.add_runs(iter([(run, load_run(run))]))) == 1   # (was [] and nothing added)
+        assert [v["name"] for v in idx.videos()] == ["r"]
+        for bad in (["dir"], [(run, "abc")], [(run,)]):
+            with pytest.raises(InputError, match="runs item 1"):
+                idx.add_runs(bad)
+
+
+def test_index_search_takes_a_path_and_names_what_is_wrong(tmp_path):
+    """A pathlib.Path as video was SQLite's binding error, reported as "damaged index ... build a
+    new one"; so was a number, and a search from another thread."""
+    from artmotion.app import EventIndex
+
+    run = _run_folder(tmp_path)
+    with EventIndex(tmp_path / "i.sqlite") as idx:
+        idx.add_run(run)
+        from pathlib import Path
+
+        assert idx.search("person stays", video=Path("/videos/r.mp4"))
+        with pytest.raises(InputError, match="video must be a name or a source path, got int"):
+            idx.search("person stays", video=3)
+        got = []
+
+        def other():
+            try:
+                idx.search("person stays")
+            except InputError as exc:
+                got.append(str(exc))
+
+        t = threading.Thread(target=other)
+        t.start()
+        t.join()
+        assert got and "opened in another thread" in got[0] and "damaged" not in got[0]
+
+
+@pytest.mark.parametrize("call", [
+    lambda tmp: __import__("artmotion.app.pipeline", fromlist=["x"]).run_pipeline(tmp / "none", tmp / "o", video="no"),
+    lambda tmp: __import__("artmotion.app.index", fromlist=["x"]).EventIndex(tmp / "n.sqlite", write="no"),
+    lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).write_dataset(tmp / "d", 2, dark="no"),
+    lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).write_dataset(tmp / "d", 2, frames="no"),
+    lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).render_sequence(3, dark="no"),
+])
+def test_switches_given_text_are_refused(tmp_path, call):
+    """"no" is true to Python: each of these left its switch on (annotated video, a writable index
+    created, dark renders, frames written)."""
+    with pytest.raises(InputError, match="must be True or False"):
+        call(tmp_path)
+    assert not (tmp_path / "n.sqlite").exists() and not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("kw", [{"n": 0}, {"n": 2.5}, {"n": 3, "motion": "x"}, {"n": 3, "scenes": 0},
+                                {"n": 3, "seed": -1}, {"n": 3, "style": 5}])
+def test_render_sequence_checks_its_arguments_at_the_call(kw):
+    """They were checked only at the first next() (cv2.error, KeyError, IndexError), or not at all."""
+    from artmotion.pose.render import render_sequence
+
+    with pytest.raises(InputError):
+        render_sequence(**kw)
+
+
+def test_tool_tracker_checks_its_settings_and_its_detections():
+    from artmotion.tracking.instruments.track import ToolTracker
+
+    class Fake:
+        def __init__(self, rows):
+            self.rows = rows
+
+        def detect(self, frame):
+            return np.array(self.rows, dtype=float)
+
+    for kw in ({"klt": "no"}, {"gate": -1}, {"birth": 2}, {"coast": -1}, {"max_miss": 2.5}, {"merge": np.inf},
+               {"accel": float("nan")}):
+        with pytest.raises(InputError):
+            ToolTracker(Fake([]), **kw)
+    with pytest.raises(InputError, match="detect"):
+        ToolTracker(None)
+    frame = np.zeros((64, 96, 3), np.uint8)
+    for rows in ([[30.0, 20, -5, 0.5, 0.7]], [[30.0, 20, 5, 0.5, 7.0]], [[3e6, 20, 5, 0.5, 0.7]]):
+        with pytest.raises(InputError, match="positive size"):
+            ToolTracker(Fake(rows)).update(frame)
+
+
+def test_a_detector_returning_rows_of_another_length_is_refused():
+    """(4, 3) boxes were re-cut into three boxes of four numbers."""
+    from artmotion.tracking.detectors import Detector
+
+    class Mine(Detector):
+        def detect(self, frame):
+            return np.arange(1, 13.0).reshape(4, 3), [0.9, 0.8, 0.7]
+
+    with pytest.raises(InputError, match=r"boxes must be an \(N, 4\) array"):
+        Mine()(np.zeros((100, 100, 3), np.uint8))
+
+
+def test_crop_box_refuses_a_box_that_is_not_finite():
+    """A NaN box cropped the whole width."""
+    from artmotion.pose.features import crop_box
+
+    frame = np.zeros((100, 100, 3), np.uint8)
+    for box in ((np.nan, 10, 20, 20), (10, 10, np.inf, 20), (1, 2, 3)):
+        with pytest.raises(InputError, match="box must be 4 finite numbers"):
+            crop_box(frame, box)
+    assert crop_box(frame, (10, 10, 20, 30)).shape == (30, 20, 3)

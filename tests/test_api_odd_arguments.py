@@ -144,3 +144,39 @@ def test_crop_box_refuses_a_box_that_is_not_finite():
         with pytest.raises(InputError, match="box must be 4 finite numbers"):
             crop_box(frame, box)
     assert crop_box(frame, (10, 10, 20, 30)).shape == (30, 20, 3)
+
+
+def test_hog_and_lbp_take_crops_in_their_documented_range():
+    """uint8 crops wrapped around in HOG's gradients (0.40 off), 0-255 floats saturated LBP, a cell
+    of 0 divided by zero: each gave numbers, or an error from deep inside."""
+    from artmotion.pose.features import hog_batch, lbp_batch
+
+    B = np.random.default_rng(0).random((2, 48, 64, 3)).astype(np.float32)
+    for f in (hog_batch, lbp_batch):
+        for bad in ((B * 255).astype(np.uint8), B * 255, B[..., :1], B[0]):
+            with pytest.raises(InputError, match="crops must"):
+                f(bad)
+        for cell in (0, -8, 100, 2.5):
+            with pytest.raises(InputError, match="cell must be"):
+                f(B, cell=cell)
+        assert np.isfinite(f(B)).all()
+
+
+def test_box_views_never_gives_infinities():
+    from artmotion.pose.features import box_views
+
+    for boxes, size in (([[1e308] * 4], (640, 480)), ([[1, 1, 1e-300, 1e-300]], (1e-300, 1e-300)),
+                        ([[1, 1, 5, 5]] * 3, [[640, 480]] * 2), ([[1, 2, 3, 4, 5]], (640, 480))):
+        with pytest.raises(InputError):
+            box_views(boxes, size)
+    assert np.isfinite(box_views([[1, 1, 1e-300, 5]], (640, 480))).all()
+
+
+def test_point_tracks_checks_its_settings():
+    from artmotion.articulation.video.tracks import point_tracks
+
+    frames = [np.zeros((40, 40), np.uint8)] * 3
+    for kw in ({"fps": "25"}, {"reseed": 0}, {"max_points": 0}, {"fb_max": float("nan")}, {"min_eig": -1},
+               {"spacing": -1}):
+        with pytest.raises(InputError):
+            point_tracks(frames, **{"fps": 25.0, **kw})

@@ -30,7 +30,8 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from artmotion.errors import InputError, float_array
+from artmotion.errors import InputError, check_range, float_array
+from artmotion.io.mot import MAX_COORD
 
 CROP_W, CROP_H = 64, 48  # the thesis' fixed size (width x height)
 FEATURES = ("hog", "lbp", "cnn")
@@ -118,8 +119,23 @@ def _cell_base(B: int, cy: int, cx: int, cell: int) -> np.ndarray:
     return base
 
 
+def _check_batch(batch, cell, name: str) -> int:
+    """``batch`` a ``(B, H, W, 3)`` array of floats in [0, 1] (:func:`resize_crop`'s crops) and
+    ``cell`` a whole number of pixels from 2 to the crops' shorter side; else an
+    :class:`InputError` (uint8 crops wrapped around in the gradients, 0-255 floats saturated the
+    LBP codes, a cell of 0 divided by zero). Returns the cell as an int."""
+    if not (isinstance(batch, np.ndarray) and batch.dtype.kind == "f" and batch.ndim == 4 and batch.shape[3] == 3
+            and batch.shape[0] and batch.size):
+        got = f"{batch.dtype} array of shape {batch.shape}" if isinstance(batch, np.ndarray) else type(batch).__name__
+        raise InputError(f"{name}: crops must be a float array (B, H, W, 3) of values in [0, 1], got a {got}")
+    if not (batch.min() >= 0.0 and batch.max() <= 1.0):        # (NaN fails both)
+        raise InputError(f"{name}: crops must hold values in [0, 1] (resize_crop's), not 0-255 or NaN")
+    return check_range("cell", cell, 2, min(batch.shape[1], batch.shape[2]), integer=True)
+
+
 def hog_batch(batch: np.ndarray, cell: int = 8) -> np.ndarray:
     """UoCTTI HOG of a batch ``(B, H, W, 3)`` float32 → ``(B, (H//cell)*(W//cell)*31)``."""
+    cell = _check_batch(batch, cell, "hog_batch")
     B, H, W, _ = batch.shape
     cy, cx = H // cell, W // cell
     img = batch[:, : cy * cell, : cx * cell, :]
@@ -182,6 +198,7 @@ def lbp_batch(batch: np.ndarray, cell: int = 16) -> np.ndarray:
     """Per-cell uniform-LBP histograms of a batch ``(B, H, W, 3)`` → ``(B, cells*58)``."""
     from skimage.feature import local_binary_pattern
 
+    cell = _check_batch(batch, cell, "lbp_batch")
     B, H, W, _ = batch.shape
     cy, cx = H // cell, W // cell
     out = np.empty((B, cy, cx, _LBP_UNIFORM), dtype=np.float32)
@@ -215,13 +232,20 @@ def box_views(boxes, frame_size) -> np.ndarray:
     3-D orientation looks different at the edge of the picture than at its centre (the viewing
     ray differs by up to ~16° in a 640-px endoscope frame), and the box's shape is part of the
     pose's appearance."""
-    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    size = np.asarray(frame_size, dtype=float).reshape(-1, 2)
+    b = float_array(boxes, "boxes")
+    size = float_array(frame_size, "frame_size")
+    if b.shape[-1:] != (4,) or size.shape[-1:] != (2,):
+        raise InputError(f"boxes must be (n, 4) x, y, w, h and frame_size (width, height) or (n, 2), got shapes "
+                         f"{b.shape} and {size.shape}")
+    b, size = b.reshape(-1, 4), size.reshape(-1, 2)
+    if len(size) not in (1, len(b)):
+        raise InputError(f"frame_size must be one size or one per box ({len(b)}), got {len(size)}")
     W, H = size[:, 0], size[:, 1]
-    if not np.all(np.isfinite(size)) or np.any(size <= 0):
-        raise InputError("frame sizes must be positive")
-    if not np.all(np.isfinite(b)) or np.any(b[:, 2:] <= 0):
-        raise InputError("boxes need finite positions and positive widths and heights")
+    # (within MAX_COORD: 1e308 gave infinite views)
+    if not np.all(np.isfinite(size)) or np.any(size < 1) or np.any(size > MAX_COORD):
+        raise InputError(f"frame sizes must be from 1 to {MAX_COORD:g} pixels")
+    if not np.all(np.isfinite(b)) or np.any(b[:, 2:] <= 0) or np.any(np.abs(b) > MAX_COORD):
+        raise InputError(f"boxes need finite positions and positive widths and heights within {MAX_COORD:g} pixels")
     cx = (b[:, 0] + b[:, 2] / 2 - W / 2) / W
     cy = (b[:, 1] + b[:, 3] / 2 - H / 2) / W
     return np.stack([4 * cx, 4 * cy, np.log(b[:, 2] / b[:, 3]), np.log(b[:, 3] / W)], 1).astype(np.float32)

@@ -139,6 +139,12 @@ def point_tracks(frames: Iterable[np.ndarray], fps: float, max_points: int = 100
                  fb_max: float = 1.0, min_eig: float = 1e-3, spacing: int = 7,
                  on_frame: Callable[[int], None] | None = None) -> PointTracks:
     """Track corners through ``frames`` (BGR or gray uint8 images of one size)."""
+    check_range("fps", fps, 1e-3, 1e3)
+    check_range("max_points", max_points, 1, 10**6, integer=True)
+    check_range("reseed", reseed, 1, 10**6, integer=True)
+    check_range("fb_max", fb_max, 0.0, 1e6, lo_open=True)
+    check_range("min_eig", min_eig, 0.0, 1.0)
+    check_range("spacing", spacing, 1, 10**4, integer=True)
     win = 15  # KLT's window; also the patch that tells whether a track is still on its point
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
 

@@ -180,3 +180,27 @@ def test_point_tracks_checks_its_settings():
                {"spacing": -1}):
         with pytest.raises(InputError):
             point_tracks(frames, **{"fps": 25.0, **kw})
+
+
+def test_more_odd_arguments_are_input_errors(tmp_path):
+    """Each was a bare KeyError, AttributeError, TypeError or NumPy ValueError from deep inside."""
+    from artmotion.app import EventIndex
+    from artmotion.app.pipeline import run_pipeline
+    from artmotion.language.describe import describe, events_from_tracks
+
+    rows = np.array([[f, 1, 10 + 5 * f, 100, 30, 80, 1, -1, -1, -1] for f in range(1, 11)], float)
+    assert describe(rows, [], image_size=np.array([640, 480]))       # (an array: "ambiguous")
+    for size in (640, "ab", (0, 480)):
+        with pytest.raises(InputError, match="image size must be"):
+            describe(rows, [], image_size=size)
+    for bad in (rows[:, :3], np.where(rows == 1, np.nan, rows), "text"):
+        with pytest.raises(InputError):
+            events_from_tracks(bad, (640, 480))
+    with pytest.raises(InputError, match="image size must be"):
+        events_from_tracks(rows, (0, 0))
+    run = _run_folder(tmp_path)
+    with EventIndex(tmp_path / "i.sqlite") as idx:
+        with pytest.raises(InputError, match="corrupt manifest: no 'track_summary'"):
+            idx.add_run(run, run={"name": "x"})
+    with pytest.raises(InputError, match="object_class must be a class name"):
+        run_pipeline(tmp_path / "none", tmp_path / "o", object_class=3)

@@ -203,6 +203,8 @@ def run_pipeline(
 
     check_bool("video", video)
     t0 = time.perf_counter()
+    if not isinstance(object_class, str):
+        raise InputError(f"object_class must be a class name (text), got {type(object_class).__name__}")
     word, per_track = parse_classes([object_class])   # the word the sentences name, checked as describe's
     if per_track:
         raise InputError(f"--class {object_class!r}: run takes one NAME for every track")
@@ -362,7 +364,11 @@ def check_run_files(run_dir: str | os.PathLike, run: dict) -> None:
     """An :class:`InputError` naming the first file of the run folder whose content is not what its
     manifest ``run`` (:func:`load_run`) records (a ``results.txt`` truncated, a ``sentences.txt``
     cut since the run): the manifest's tracks, events and sentences would no longer be the run's.
-    A manifest written before the SHA-256 were recorded is taken as it is."""
+    A manifest written before the SHA-256 were recorded is taken as it is. A manifest that is not
+    of the kind :func:`load_run` accepts (a dict given from Python) is refused the same way."""
+    problem = _manifest_problem(run)
+    if problem:
+        raise InputError(f"corrupt manifest: {problem}", path=Path(run_dir) / MANIFEST)
     for name, digest in sorted((run.get("sha256") or {}).items()):
         path = Path(run_dir) / name
         try:

@@ -239,16 +239,27 @@ def border_side(box: np.ndarray, size: tuple[float, float], p: DescribeParams) -
     return side if d[side] <= margin else "inside"
 
 
+def _image_size(size) -> tuple[float, float]:
+    """``size`` as ``(width, height)``, two numbers in ``(0, MAX_COORD]`` (a NumPy pair too); else an
+    :class:`InputError` (an array was "ambiguous", a number a TypeError)."""
+    try:
+        s = np.asarray(size, dtype=float)
+    except (TypeError, ValueError):
+        s = np.zeros(0)
+    if s.shape != (2,) or not all(0 < v <= MAX_COORD for v in s):
+        raise InputError(f"image size must be (width, height) in pixels, got {size!r}")
+    return float(s[0]), float(s[1])
+
+
 def check_image_size(rows: np.ndarray, size, path: str | os.PathLike | None = None) -> None:
     """An :class:`InputError` (naming ``path``, the tracks' file) unless ``size`` is an image
     ``(width, height)`` the boxes of ``rows`` fit: a box may stand partly out of the image, its
     centre hardly; a quarter of the image beyond a border means the size is wrong (entries and
     exits would be said at the wrong sides)."""
-    if not (len(size) == 2 and all(0 < v <= MAX_COORD for v in size)):
-        raise InputError(f"image size must be (width, height) in pixels, got {size!r}")
+    _image_size(size)
     if not len(rows):
         return
-    (w, h), c = size, box_center(rows[:, 2:6])
+    (w, h), c = _image_size(size), box_center(rows[:, 2:6])
     off = (c[:, 0] < -w / 4) | (c[:, 0] > 1.25 * w) | (c[:, 1] < -h / 4) | (c[:, 1] > 1.25 * h)
     if off.any():
         x, y = c[off][0]
@@ -536,7 +547,9 @@ def events_from_tracks(tracks: np.ndarray, size: tuple[float, float] | None = No
     starts after the first frame enters (by the image border its first box touches, else
     ``inside``: it appears); one that ends before the last frame exits (or vanishes)."""
     p = _params(params)
-    tracks = np.asarray(tracks, dtype=float).reshape(-1, np.shape(tracks)[-1] if np.size(tracks) else 10)
+    tracks = check_mot_rows(tracks, "tracks")       # (NaN rows, 3 columns, text: errors from deep inside)
+    if size is not None:
+        size = _image_size(size)
     if not len(tracks):
         return []
     return _track_events(tracks_from_mot(tracks), tracks, size, p)

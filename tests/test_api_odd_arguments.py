@@ -204,3 +204,36 @@ def test_more_odd_arguments_are_input_errors(tmp_path):
             idx.add_run(run, run={"name": "x"})
     with pytest.raises(InputError, match="object_class must be a class name"):
         run_pipeline(tmp_path / "none", tmp_path / "o", object_class=3)
+
+
+def test_a_zero_direction_is_no_direction():
+    """A prismatic joint along [0, 0, 0] predicted its origin for every q."""
+    from artmotion.articulation.models import PrismaticModel, RevoluteModel
+
+    with pytest.raises(InputError, match="direction must be a direction, not a zero vector"):
+        PrismaticModel(origin=[0, 0, 0], direction=[0, 0, 0])
+    with pytest.raises(InputError, match="axis must be a direction"):
+        RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 0], radius=1.0, u=[1, 0, 0])
+    assert np.allclose(PrismaticModel(origin=[0, 0, 0], direction=[0, 0, 2]).predict([1.0]), [[0, 0, 1]])
+
+
+def test_point_tracks_positions_lie_in_their_image():
+    """Tracks at 300 px given a 1x1 image were classified (prismatic instead of revolute)."""
+    from artmotion.articulation.video import PointTracks
+
+    xy = np.full((5, 2, 2), 300.0)
+    with pytest.raises(InputError, match="outside the 1x1 image"):
+        PointTracks(xy, 25.0, 1, 1)
+    PointTracks(xy, 25.0, 640, 480)
+
+
+def test_odd_use_of_fitted_things_is_an_input_error():
+    from artmotion.articulation.online import OnlineEstimator
+    from artmotion.language.grounding.model import Grounder
+
+    with pytest.raises(InputError, match="no fitted model 'static'"):
+        OnlineEstimator().fitted("static")
+    with pytest.raises(InputError, match="Grounder is not fitted"):
+        Grounder().speech_to_visual(np.zeros(3), np.zeros(3))
+    with pytest.raises(InputError, match="feature dictionary"):
+        Grounder().fit({})

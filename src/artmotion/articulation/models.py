@@ -64,6 +64,16 @@ def _unit(v) -> np.ndarray:
     return v / n if n > 0 else v
 
 
+def _given_unit(value, name: str) -> np.ndarray:
+    """A direction given to a model's constructor, as a unit vector; a zero one (no direction: a
+    line along it predicted its origin for every q) is an :class:`InputError`."""
+    v = _given(value, name)
+    assert v is not None
+    if not np.linalg.norm(v) > 0:
+        raise InputError(f"{name} must be a direction, not a zero vector")
+    return _unit(v)
+
+
 def _given(value, name: str) -> np.ndarray | None:
     """An array given to a model's constructor as a float array of its own (a copy: the caller's
     array may change afterwards), or None."""
@@ -413,7 +423,7 @@ class PrismaticModel(PointModel):
 
     def __init__(self, origin=None, direction=None):
         self.origin = _given(origin, "origin")
-        self.direction = None if direction is None else _unit(_given(direction, "direction"))
+        self.direction = None if direction is None else _given_unit(direction, "direction")
 
     def fit(self, X, weights=None):
         X, weights = self._fit_input(X, weights)
@@ -475,9 +485,9 @@ class RevoluteModel(PointModel):
 
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
         self.centre = _given(centre, "centre")
-        self.axis = None if axis is None else _unit(_given(axis, "axis"))
+        self.axis = None if axis is None else _given_unit(axis, "axis")
         self.radius = radius
-        self.u = None if u is None else _unit(_given(u, "u"))
+        self.u = None if u is None else _given_unit(u, "u")
         self.planar_axis = _given(planar_axis, "planar_axis")  # fixed plane normal (2-D data), or None to estimate
 
     @property
@@ -571,7 +581,7 @@ class PlanarModel(PointModel):
 
     def __init__(self, origin=None, normal=None, planar_axis=None):
         self.origin = _given(origin, "origin")
-        self.normal = None if normal is None else _unit(_given(normal, "normal"))
+        self.normal = None if normal is None else _given_unit(normal, "normal")
         self.planar_axis = _given(planar_axis, "planar_axis")
         if self.normal is not None:
             self.u, self.v = _orthonormal_to(self.normal)

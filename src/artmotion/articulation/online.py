@@ -926,7 +926,8 @@ class OnlineEstimator(Params):
         far: what a caller that acts on Algorithm 1's decision should use, not a plain least-squares
         fit that one glitch drags."""
         if self.filters is None or name not in self.names:
-            raise ValueError(f"no fitted model {name!r}")
+            raise InputError(f"no fitted model {name!r} (models: {', '.join(self.names)}; "
+                             f"fitted after {self.min_samples} samples)")
         return self._final_filters({name}, copies=True)[name]
 
     def result(self, horizon: int = 5) -> OnlineResult:

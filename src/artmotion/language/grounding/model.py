@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 
+from artmotion.errors import InputError
 from artmotion.io.media import read_image
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse
@@ -21,6 +22,9 @@ class Grounder:
         self.seed = seed
 
     def fit(self, F: dict, idx: np.ndarray | None = None) -> Grounder:
+        need = ("colors", "shapes", "color", "shape", "audio_seg")
+        if not isinstance(F, dict) or any(k not in F for k in need):
+            raise InputError(f"fit needs the feature dictionary of load_features (keys {', '.join(need)})")
         idx = np.arange(len(F["colors"])) if idx is None else np.asarray(idx)
         self.model_ = CompositionalSparse(seed=self.seed).fit(
             [F["color"][idx], F["shape"][idx]], [a[idx] for a in F["audio_seg"]]
@@ -31,8 +35,13 @@ class Grounder:
             self.words_.append((names, np.array([seg[idx][labels == n].mean(axis=0) for n in names])))
         return self
 
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "model_"):
+            raise InputError("Grounder is not fitted: call fit(features) first")
+
     def speech_to_visual(self, first_word: np.ndarray, second_word: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Colour (RGB in [0, 1]) and shape descriptor generated from two word features."""
+        self._check_fitted()
         c, s = self.model_.audio_to_visual([np.atleast_2d(first_word), np.atleast_2d(second_word)])
         return c[0], s[0]
 
@@ -43,6 +52,7 @@ class Grounder:
 
     def image_to_speech(self, image: str | os.PathLike | np.ndarray) -> tuple[list[np.ndarray], list[str]]:
         """Audio features generated for each word segment, and the nearest known word of each."""
+        self._check_fitted()
         img = read_image(image) if not isinstance(image, np.ndarray) else image
         c, s = visual_features(img, where=None if isinstance(image, np.ndarray) else str(image))
         segs = [g[0] for g in self.model_.visual_to_audio([c[None], s[None]])]

@@ -217,16 +217,6 @@ def test_a_zero_direction_is_no_direction():
     assert np.allclose(PrismaticModel(origin=[0, 0, 0], direction=[0, 0, 2]).predict([1.0]), [[0, 0, 1]])
 
 
-def test_point_tracks_positions_lie_in_their_image():
-    """Tracks at 300 px given a 1x1 image were classified (prismatic instead of revolute)."""
-    from artmotion.articulation.video import PointTracks
-
-    xy = np.full((5, 2, 2), 300.0)
-    with pytest.raises(InputError, match="outside the 1x1 image"):
-        PointTracks(xy, 25.0, 1, 1)
-    PointTracks(xy, 25.0, 640, 480)
-
-
 def test_odd_use_of_fitted_things_is_an_input_error():
     from artmotion.articulation.online import OnlineEstimator
     from artmotion.language.grounding.model import Grounder

@@ -65,11 +65,6 @@ class PointTracks:
         self.fps = float(check_range("fps (frames/s)", self.fps, MIN_FPS, MAX_FPS))
         self.width = check_range("width", self.width, 1, MAX_IMAGE_PIXELS, integer=True)
         self.height = check_range("height", self.height, 1, MAX_IMAGE_PIXELS, integer=True)
-        x, y = xy[..., 0][~nan[..., 0]], xy[..., 1][~nan[..., 1]]
-        # (points of another image: tracks at 300 px in a 1-px image were classified, wrongly)
-        if len(x) and (x.min() < -1 or x.max() > self.width or y.min() < -1 or y.max() > self.height):
-            raise InputError(f"xy: positions lie outside the {self.width}x{self.height} image (by more than a "
-                             "pixel): width and height must be the image's the tracks were found in")
         for name in ("slips", "checks"):
             v = getattr(self, name)
             if v is None:

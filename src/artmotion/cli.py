@@ -135,9 +135,6 @@ class _Stdout:
     def write(self, text):
         try:
             return self._stream.write(text)
-        except BrokenPipeError:
-            self._closed()
-            return len(text)
         except OSError as exc:
             self._closed(exc)
             return len(text)
@@ -149,14 +146,12 @@ class _Stdout:
     def flush(self):
         try:
             self._stream.flush()
-        except BrokenPipeError:
-            self._closed()
         except OSError as exc:
             self._closed(exc)
 
-    def _closed(self, failed: OSError | None = None) -> None:
-        if failed is not None and self.failed is None:
-            self.failed = failed
+    def _closed(self, exc: OSError) -> None:
+        if self.failed is None and not isinstance(exc, BrokenPipeError):   # (a reader gone is no failure)
+            self.failed = exc
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             try:

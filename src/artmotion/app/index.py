@@ -230,7 +230,7 @@ class EventIndex:
         transaction: all are indexed or none (a full disk half-way left some added, unsaid).
         Returns each video's name and the run folder of the entry it replaced (the same source
         indexed before, or earlier in ``runs``: two copies of one run), else ``None``."""
-        from artmotion.app.pipeline import check_run_files
+        from artmotion.app.pipeline import MANIFEST, check_manifest, check_run_files
 
         if not self.write:
             raise InputError("the index is open read-only", path=self.path)
@@ -239,8 +239,9 @@ class EventIndex:
             if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[1], dict)):
                 raise InputError(f"runs item {k + 1}: must be (run folder, manifest as load_run returns it), "
                                  f"got {type(item).__name__}")
-        for run_dir, run in runs:       # the files the manifest describes, as the run left them
-            check_run_files(run_dir, run)
+            run_dir, run = item
+            check_manifest(run, Path(run_dir) / MANIFEST)   # (a dict given from Python, not read by load_run)
+            check_run_files(run_dir, run)       # the files the manifest describes, as the run left them
         added = []
         with self._errors(), self.conn:
             for run_dir, run in runs:

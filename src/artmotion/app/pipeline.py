@@ -364,11 +364,7 @@ def check_run_files(run_dir: str | os.PathLike, run: dict) -> None:
     """An :class:`InputError` naming the first file of the run folder whose content is not what its
     manifest ``run`` (:func:`load_run`) records (a ``results.txt`` truncated, a ``sentences.txt``
     cut since the run): the manifest's tracks, events and sentences would no longer be the run's.
-    A manifest written before the SHA-256 were recorded is taken as it is. A manifest that is not
-    of the kind :func:`load_run` accepts (a dict given from Python) is refused the same way."""
-    problem = _manifest_problem(run)
-    if problem:
-        raise InputError(f"corrupt manifest: {problem}", path=Path(run_dir) / MANIFEST)
+    A manifest written before the SHA-256 were recorded is taken as it is."""
     for name, digest in sorted((run.get("sha256") or {}).items()):
         path = Path(run_dir) / name
         try:
@@ -434,10 +430,16 @@ def load_run(run_dir: str | os.PathLike) -> dict:
         raise InputError(f"corrupt manifest: {exc}", path=path) from None
     except RecursionError:
         raise InputError("corrupt manifest: nested too deeply", path=path) from None
+    check_manifest(run, path)
+    return run
+
+
+def check_manifest(run, path: str | os.PathLike) -> None:
+    """An :class:`InputError` naming ``path`` unless ``run`` is a manifest of the kind
+    :func:`run_pipeline` writes (types, ranges, consistency: :func:`_manifest_problem`)."""
     problem = _manifest_problem(run)
     if problem:
         raise InputError(f"corrupt manifest: {problem}", path=path)
-    return run
 
 
 def _is_int(v, lo: int = -MAX_ID, hi: int = MAX_ID) -> bool:
@@ -568,8 +570,9 @@ def input_digest(seq, det=None) -> str:
     for what, p in (("seqinfo", folder / "seqinfo.ini" if folder.is_dir() else None),
                     ("det", Path(det) if det is not None else seq.det_path), ("gt", seq.gt_path)):
         if p is not None and Path(p).is_file():
-            h.update(f"{what}:{Path(p).stat().st_size};".encode())
-            h.update(Path(p).read_bytes())
+            data = Path(p).read_bytes()
+            h.update(f"{what}:{len(data)};".encode())
+            h.update(data)
     return h.hexdigest()[:16]
 
 

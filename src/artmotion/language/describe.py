@@ -256,10 +256,10 @@ def check_image_size(rows: np.ndarray, size, path: str | os.PathLike | None = No
     ``(width, height)`` the boxes of ``rows`` fit: a box may stand partly out of the image, its
     centre hardly; a quarter of the image beyond a border means the size is wrong (entries and
     exits would be said at the wrong sides)."""
-    _image_size(size)
+    w, h = _image_size(size)
     if not len(rows):
         return
-    (w, h), c = _image_size(size), box_center(rows[:, 2:6])
+    c = box_center(rows[:, 2:6])
     off = (c[:, 0] < -w / 4) | (c[:, 0] > 1.25 * w) | (c[:, 1] < -h / 4) | (c[:, 1] > 1.25 * h)
     if off.any():
         x, y = c[off][0]
@@ -634,9 +634,10 @@ def describe(
             raise InputError(f"event {k + 1}: {problem}")
     if fps is not None:
         check_range("fps", fps, MIN_FPS, MAX_FPS)
-    size_known = check_bool("size_known", size_known)
-    if image_size is not None:      # (with size_known, only the size itself: no boxes to fit it)
-        check_image_size(tracks[:0] if size_known else tracks, image_size)
+    if check_bool("size_known", size_known) and image_size is not None:
+        _image_size(image_size)     # (the frames' own size: only the size itself, no boxes to fit it)
+    elif image_size is not None:
+        check_image_size(tracks, image_size)
     default_cls, per_track = _check_classes(classes)
     if not _is_class_name(pose_subject):
         raise InputError(f"pose_subject must be a class name (letters, spaces and hyphens), got {pose_subject!r}")

@@ -371,19 +371,19 @@ def render_sequence(n: int, seed: int = 0, dark: bool = False, motion: str = "sc
     learns that background). ``style``: the look of tool and tissue (:data:`STYLES`, or ``random``:
     a look of :func:`random_look` per scene); the same seed draws the same motion and scene in
     every style. The arguments are checked at the call, before the first frame is drawn."""
-    _check_rendering(n, seed, dark, motion, scenes, style, "n")
+    _check_rendering(n, seed, dark, motion, scenes, style, ("n", "scenes"))
     return _render(n, seed, dark, motion, scenes, style)
 
 
-def _check_rendering(n, seed, dark, motion, scenes, style, count: str) -> None:
-    """The options of :func:`render_sequence` and :func:`write_dataset` (``count``: the name ``n``
-    goes by), each an :class:`InputError` naming it."""
-    check_range(count, n, 1, MAX_POSES, integer=True)
+def _check_rendering(n, seed, dark, motion, scenes, style, names: tuple[str, str]) -> None:
+    """The options of :func:`render_sequence` and :func:`write_dataset` (``names``: what ``n`` and
+    ``scenes`` go by there), each an :class:`InputError` naming it."""
+    check_range(names[0], n, 1, MAX_POSES, integer=True)
     check_seed(seed)
     check_bool("dark", dark)
     if not isinstance(motion, str) or motion not in MOTIONS:
         raise InputError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
-    check_range("--scenes" if count.startswith("--") else "scenes", scenes, 1, n, integer=True)
+    check_range(names[1], scenes, 1, n, integer=True)
     if not isinstance(style, str) or style not in (*STYLES, "random"):
         raise InputError(f"unknown style {style!r}; choose one of {', '.join(STYLES)}, random")
 
@@ -488,7 +488,7 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""
-    _check_rendering(n, seed, dark, motion, scenes, style, "--poses")
+    _check_rendering(n, seed, dark, motion, scenes, style, ("--poses", "--scenes"))
     check_bool("frames", frames)
     check_bool("progress", progress)
     out = Path(out)

@@ -49,9 +49,9 @@ class MultiObjectTracker(OnlineTracker):
 
     def __init__(self, fps: float, width: int, height: int, experts=("det", "motion"),
                  config: TrackerConfig | None = None, online: bool = False):
-        check_bool("online", online)
+        online = check_bool("online", online)
         super().__init__(fps, width, height, experts=experts, config=config)
-        self.online = bool(online)
+        self.online = online
         self.relabel: dict[int, int] = {}
         self.piece_span: dict[int, tuple[int, int]] = {}
         self.row_kinds = np.zeros(0, dtype=int)

@@ -120,9 +120,8 @@ class ToolTracker:
                  camera: bool = True, flow: bool = False):
         for name, flag in (("klt", klt), ("camera", camera), ("flow", flow)):
             check_bool(name, flag)
-        for name, value, lo in (("detect_std", detect_std, 0.0), ("accel", accel, 0.0), ("gate", gate, 0.0),
-                                ("merge", merge, 0.0)):
-            check_range(name, value, lo, 1e6, lo_open=True)
+        for name, value in (("detect_std", detect_std), ("accel", accel), ("gate", gate), ("merge", merge)):
+            check_range(name, value, 0.0, 1e6, lo_open=True)
         check_range("birth", birth, 0.0, 1.0)
         check_range("coast", coast, 0, 10**6, integer=True)
         check_range("max_miss", max_miss, 0, 10**6, integer=True)

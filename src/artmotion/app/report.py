@@ -105,6 +105,7 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())
     scale, (dw, dh) = fit_size(int(seq.width), int(seq.height), DISPLAY_WIDTH, 3 * DISPLAY_WIDTH)
+    half = (max(1, dw // 2), max(1, dh // 2))
     shown = tracks.copy()
     shown[:, 2:6] *= scale                  # the boxes in the report's pixels
     reduce = max(k for k in (1, 2, 4, 8) if k * scale <= 1.0)
@@ -116,10 +117,11 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
             small = frame if frame.shape[:2] == (dh, dw) else cv2.resize(frame, (dw, dh), interpolation=cv2.INTER_AREA)
             if fno in keys:
                 key_images[fno] = draw_boxes(small.copy(), shown[shown[:, 0] == fno])
-            if fno in samples:
-                background_samples.append(small)
+            if fno in samples:      # (at half size: the median over 25 frames is most of the report's time)
+                background_samples.append(cv2.resize(small, half, interpolation=cv2.INTER_AREA))
     if background_samples:  # the median of frames spread over time removes moving people
         bg = np.median(np.stack(background_samples), axis=0).astype(np.uint8)
+        bg = cv2.resize(bg, (dw, dh), interpolation=cv2.INTER_LINEAR)
     else:
         bg = np.zeros((dh, dw, 3), np.uint8)
     events_by_frame: dict[int, list[str]] = {}

@@ -334,3 +334,25 @@ def test_write_events_output_is_unchanged(tmp_path):
                       "extra": {"a": [1, 2.5, None, True, "s"], 3: "k"}}]
     write_events(p, events)
     assert p.read_text() == "".join(json.dumps(e, sort_keys=False, allow_nan=False) + "\n" for e in events)
+
+
+# ---------------------------------------------------------------- arrays of numbers
+
+
+@pytest.mark.parametrize("value", [[1 + 2j, 3.0], ["1.5", "2"], np.array(["1"]), [1, "a"], np.array([1, "2"], dtype=object),
+                                   np.array([1j])])
+def test_float_array_refuses_text_and_complex_numbers(value):
+    # NumPy parses "1.5" and drops an imaginary part with only a ComplexWarning: an observation of
+    # 1+2j was taken as 1, and text as the number it spells
+    from artmotion.errors import float_array
+
+    with pytest.raises(InputError, match="z must be an array of numbers"):
+        float_array(value, "z")
+
+
+def test_float_array_keeps_real_numbers_of_any_type():
+    from artmotion.errors import float_array
+
+    for value in ([1, 2], np.float32([1.5]), np.array([1, 2], dtype=object), np.int64(3), [[1.0, 2.0]]):
+        out = float_array(value, "z")
+        assert out.dtype == np.float64 and np.array_equal(out, np.asarray(value, dtype=float))

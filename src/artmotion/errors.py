@@ -115,10 +115,16 @@ def need_package(module: str, extra: str, what: str) -> None:
 
 def float_array(value, name: str):
     """``value`` as a float NumPy array, else an :class:`InputError` saying that ``name`` must be
-    an array of numbers (text, ragged lists, objects). For arrays given to the Python API."""
+    an array of numbers (text, ragged lists, objects, complex numbers: NumPy would parse ``"1.5"``
+    and drop an imaginary part with only a warning). For arrays given to the Python API."""
     import numpy as np
 
     try:
-        return np.asarray(value, dtype=float)
+        arr = np.asarray(value)
+        if arr.dtype.kind == "O" and any(isinstance(v, (str, bytes, complex)) for v in arr.flat):
+            raise TypeError
+        if arr.dtype.kind in "cSUV":
+            raise TypeError
+        return arr.astype(float, copy=False)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be an array of numbers") from None

@@ -306,3 +306,16 @@ def test_fitted_is_the_robust_fit_on_a_copy():
     assert est.result().configuration == before
     with pytest.raises(ValueError, match="no fitted model"):
         est.fitted("free")
+
+
+def test_online_update_refuses_a_time_stamp_given_as_text_or_a_bool_and_a_complex_point():
+    from artmotion.errors import InputError
+
+    est = OnlineEstimator()
+    for t in ("1.5", True, b"2"):
+        with pytest.raises(InputError, match="a time stamp must be a number"):
+            est.update([0.0, 0.0, 0.0], t)
+    with pytest.raises(InputError, match="an observation must be an array of numbers"):
+        est.update([1 + 2j, 0.0, 0.0], 1.0)
+    est.update([0.0, 0.0, 0.0], np.float32(1.0))     # NumPy numbers are numbers
+    assert est._n == 1

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import copy
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -854,10 +855,9 @@ class OnlineEstimator(Params):
         if t is None:
             t = float(k)
         else:
-            try:
-                t = float(t)
-            except (TypeError, ValueError):
-                raise InputError(f"a time stamp must be a number, got {t!r}") from None
+            if not isinstance(t, numbers.Real) or isinstance(t, bool):
+                raise InputError(f"a time stamp must be a number, got {t!r}")
+            t = float(t)
             if not math.isfinite(t):
                 raise InputError(f"time stamps must be finite, got {t}")
         if k and not t > self._Tbuf[k - 1]:

@@ -509,3 +509,19 @@ def test_a_model_whose_output_is_not_finite_is_named(tmp_path):
     with pytest.raises(InputError, match="damaged tool model: its output") as err:
         ToolDetector.load(bad).detect(frame)
     assert err.value.path == str(bad)
+
+
+def test_tool_detector_has_scikit_learns_parameter_protocol():
+    # get_params / set_params / clone as every other estimator of the package (it had none:
+    # sklearn.base.clone failed on it)
+    from sklearn.base import clone
+
+    det = ToolDetector(epochs=3, threshold=0.2)
+    assert det.get_params() == {"batch": 8, "epochs": 3, "lr": 3e-3, "max_heads": None, "seed": 0,
+                                "threshold": 0.2, "width": 32}
+    twin = clone(det)
+    assert twin is not det and twin.get_params() == det.get_params()
+    assert twin.set_params(width=8).width == 8 and det.width == 32
+    assert repr(det) == "ToolDetector(epochs=3, threshold=0.2)"
+    with pytest.raises(InputError, match="'depth' is not a parameter of ToolDetector"):
+        det.set_params(depth=2)

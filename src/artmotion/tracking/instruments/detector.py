@@ -23,6 +23,7 @@ import numpy as np
 from artmotion.errors import InputError, check_range, check_seed, float_array, need_package
 from artmotion.io.media import check_frame
 from artmotion.io.mot import MAX_BOXES_PER_FRAME
+from artmotion.params import Params
 
 __all__ = ["ToolDetector", "check_frame_size", "finite_rows", "is_grey", "need_torch"]
 
@@ -90,9 +91,9 @@ def need_torch() -> None:
     need_package("torch", "tools", "the tool commands")
 
 
-class ToolDetector:
-    """Instrument heads from a frame. Parameters as in scikit-learn: set in ``__init__``, fitted
-    state with a trailing underscore.
+class ToolDetector(Params):
+    """Instrument heads from a frame. Parameters as in scikit-learn: set in ``__init__`` (``get_params``,
+    ``set_params``, ``sklearn.base.clone``), fitted state with a trailing underscore.
 
     ``epochs``: passes over the training frames; ``batch``: frames per step; ``lr``: Adam's step;
     ``threshold``: least heat-map score of a detection; ``max_heads``: most heads reported per frame,

@@ -455,3 +455,59 @@ def test_fit_poses_takes_no_time_stamps_it_would_ignore():
     not silently dropped (the classification is geometric)."""
     with pytest.raises(TypeError):
         fit_poses(POSITIONS, QUATS, np.arange(len(POSITIONS)))
+
+
+# ---------------------------------------------------------------- video segmentation stages
+
+
+def _segment_cases():
+    from artmotion.articulation.video import segment as S
+    from artmotion.articulation.video.tracks import PointTracks
+
+    rng = np.random.default_rng(0)
+    xy = np.cumsum(rng.normal(0, 0.1, (30, 20, 2)), axis=0) + rng.uniform(0, 100, (1, 20, 2))
+    T = PointTracks(xy, 30.0, 200, 200)
+    return [
+        (lambda: S.camera_motion(T, "a"), "sigma must be a number in"),
+        (lambda: S.camera_motion(T, float("nan")), "sigma must be a number in"),
+        (lambda: S.camera_motion(T, -1.0), "sigma must be a number in"),
+        (lambda: S.camera_motion(xy, 0.1), "tracks must be a PointTracks"),
+        (lambda: S.noise_level(xy), "tracks must be a PointTracks"),
+        (lambda: S.rest_frames(0), "fps must be a number in"),
+        (lambda: S.rest_frames(30, -1), "rest must be a number in"),
+        (lambda: S.moving_tracks(T, float("nan")), "sigma must be a number in"),
+        (lambda: S.moving_tracks(T, 0.1, move="x"), "move must be a number in"),
+        (lambda: S.chain_affines(xy, np.array([100, 200, 300])), r"idx must index the 20 tracks \(0 to 19\), got 100 to 300"),
+        (lambda: S.chain_affines(xy[0], np.array([0, 1, 2])), r"xy must be track positions of shape \(frames, tracks, 2\)"),
+        (lambda: S.chain_affines(np.full((3, 4, 2), np.inf), [0, 1, 2]), "xy must be finite"),
+        (lambda: S.factorise_motion(xy, np.array([0.5, 1.5, 2.5])), "idx must be a 1-D array of track indices"),
+        (lambda: S.factorise_motion(xy, np.arange(5), nu=-1), "nu must be a number in"),
+        (lambda: S.part_motion(xy, np.array([], dtype=int)), "needs at least 3 tracks, got 0"),
+        (lambda: S.rigid_parts(T, np.array([999]), 0.1), "cand must index the 20 tracks"),
+        (lambda: S.rigid_parts(T, np.ones(3, bool), 0.1), r"cand as a mask must have one entry per track \(20\)"),
+        (lambda: S.rigid_parts(T, np.arange(20), 0.1, max_parts=0), "max_parts must be a whole number"),
+        (lambda: S.rigid_parts(T, np.arange(20), 0.1, iters=-1), "iters must be a whole number"),
+        (lambda: S.rigid_parts(T, np.arange(20), 0.1, min_tracks=0), "min_tracks must be a whole number"),
+        (lambda: S.rigid_parts(T, np.arange(20), 0.0), "sigma must be a number in"),
+        (lambda: S.rigid_parts(T, np.arange(20), 0.1, seed=-1), "seed must be a whole number"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(22))
+def test_video_segmentation_stages_refuse_bad_arguments_by_name(case):
+    # these were bare TypeError / IndexError / AttributeError / ValueError from inside NumPy, or
+    # (a NaN or negative noise level, indices out of range) a silent wrong answer: the camera called
+    # moving, no moving track, no part
+    call, message = _segment_cases()[case]
+    with pytest.raises(InputError, match=message):
+        call()
+
+
+def test_video_segmentation_stages_take_a_mask_as_indices():
+    from artmotion.articulation.video import segment as S
+
+    rng = np.random.default_rng(1)
+    xy = np.cumsum(rng.normal(0, 0.1, (10, 6, 2)), axis=0) + rng.uniform(0, 100, (1, 6, 2))
+    mask = np.array([True, True, False, True, False, False])
+    a, b = S.chain_affines(xy, mask), S.chain_affines(xy, [0, 1, 3])
+    assert all(np.array_equal(u, v) for u, v in zip(a[:2], b[:2])) and a[2:] == b[2:]

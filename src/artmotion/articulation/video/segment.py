@@ -23,10 +23,47 @@ import numpy as np
 
 from artmotion.articulation.online import resolution, robust_scale
 from artmotion.articulation.video.tracks import PointTracks
+from artmotion.errors import InputError, check_range, check_seed, float_array
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
 __all__ = ["Part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines", "factorise_motion",
            "part_motion"]
+
+
+def _check_tracks(tracks) -> PointTracks:
+    if not isinstance(tracks, PointTracks):
+        raise InputError(f"tracks must be a PointTracks (artmotion.articulation.video.tracks), got {type(tracks).__name__}")
+    return tracks
+
+
+def _check_sigma(sigma) -> float:
+    """The tracks' noise (px): a positive number, as :func:`noise_level` gives."""
+    return float(check_range("sigma", sigma, 0.0, 1e6, lo_open=True))
+
+
+def _check_xy(xy) -> np.ndarray:
+    """Track positions ``(frames, tracks, 2)``, NaN where a track is not seen."""
+    xy = float_array(xy, "xy")
+    if xy.ndim != 3 or xy.shape[2] != 2:
+        raise InputError(f"xy must be track positions of shape (frames, tracks, 2), got shape {xy.shape}")
+    if np.isinf(xy).any():
+        raise InputError("xy must be finite positions (NaN where a track is not seen), got infinity")
+    return xy
+
+
+def _check_indices(idx, n: int, name: str = "idx") -> np.ndarray:
+    """Track indices into ``n`` tracks (whole numbers in [0, n), or a boolean mask of length ``n``)."""
+    arr = np.asarray(idx)
+    if arr.dtype == bool:
+        if arr.shape != (n,):
+            raise InputError(f"{name} as a mask must have one entry per track ({n}), got shape {arr.shape}")
+        return np.flatnonzero(arr)
+    if arr.ndim != 1 or (arr.size and arr.dtype.kind not in "iu"):
+        raise InputError(f"{name} must be a 1-D array of track indices (whole numbers), got {arr.dtype} of shape {arr.shape}")
+    if arr.size and (arr.min() < 0 or arr.max() >= n):
+        raise InputError(f"{name} must index the {n} tracks (0 to {n - 1}), got {int(arr.min())} to {int(arr.max())}")
+    return arr.astype(int)
+
 
 def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]:
     """Whether the camera moves, and the tracks in the first frame's coordinates.
@@ -37,7 +74,8 @@ def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]
     everything). Its motion is then taken out with frame-to-frame similarities fitted by RANSAC to
     every track seen in both frames. A still camera's tracks are returned unchanged (a moving
     camera's without the slip checks, which compare image places, not scene places)."""
-    xy = tracks.xy
+    sigma = _check_sigma(sigma)
+    xy = _check_tracks(tracks).xy
     F = len(xy)
     k = max(1, int(round(tracks.fps / 3)))
     if F <= k:
@@ -65,7 +103,7 @@ def noise_level(tracks: PointTracks) -> float:
     at least that of the rounding of positions written on a grid (whole pixels: most steps are 0,
     and the median said no noise, so every still point's one-pixel flicker broke its rest; the
     difference of two roundings uniform over a step ``r`` has std ``r / sqrt 6``)."""
-    d = np.diff(tracks.xy, axis=0).reshape(-1)
+    d = np.diff(_check_tracks(tracks).xy, axis=0).reshape(-1)
     d = d[~np.isnan(d)]
     if d.size == 0:
         return 0.5
@@ -80,6 +118,8 @@ REST = 0.25
 
 def rest_frames(fps: float, rest: float = REST) -> int:
     """Frames a moving track rests first; it must live twice as long (:func:`moving_tracks`)."""
+    check_range("fps", fps, 1e-3, 1e3)
+    check_range("rest", rest, 0.0, 1e4)
     return max(3, int(round(rest * fps)))
 
 
@@ -88,7 +128,9 @@ def moving_tracks(tracks: PointTracks, sigma: float, rest: float = REST, move: f
     where they start) and later move more than ``move sigma`` (at least 4 px) from there, leaving
     out those that slipped off their point (:attr:`PointTracks.slipped`: a hand's edge dragged them,
     or they drifted along an edge; a point that moved leaves its first place looking different)."""
-    first = tracks.first
+    sigma = _check_sigma(sigma)
+    check_range("move", move, 0.0, 1e6)
+    first = _check_tracks(tracks).first
     k = rest_frames(tracks.fps, rest)
     cand = np.flatnonzero((tracks.excursion > max(4.0, move * sigma)) & (tracks.last - first >= 2 * k)
                           & ~tracks.slipped)
@@ -118,6 +160,12 @@ def chain_affines(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> 
     group's frame-0 coordinates to frame ``f``. ``segment[f]`` numbers the runs of frames over which
     the chain is unbroken (-1: no fit, fewer than 3 of the tracks seen in both frames). Also the
     fits' residual sum of squares and number of coordinates fitted."""
+    xy = _check_xy(xy)
+    return _chain(xy, _check_indices(idx, xy.shape[1]), bool(similarity))
+
+
+def _chain(xy: np.ndarray, idx: np.ndarray, similarity: bool = False) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """:func:`chain_affines` of checked arguments (the part search calls it hundreds of times)."""
     F = len(xy)
     A = np.tile(IDENTITY, (F, 1, 1))
     segment = np.full(F, -1)
@@ -180,7 +228,19 @@ def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False, 
     ``A[f]`` maps the coordinates of the first frame with a fit to frame ``f`` (held between fits);
     ``segment`` is 0 on the frames with a fit (at least 3 tracks seen), -1 elsewhere. Also the
     weighted residual sum of squares and the number of coordinates fitted."""
-    A, _, _, _ = chain_affines(xy, idx, similarity)
+    xy = _check_xy(xy)
+    idx = _check_indices(idx, xy.shape[1])
+    if nu is not None:
+        check_range("nu", nu, 0.0, 1e6, lo_open=True)
+    check_range("tol", tol, 0.0, 1.0, lo_open=True)
+    check_range("max_iters", max_iters, 1, 10**6, integer=True)
+    return _factorise(xy, idx, bool(similarity), nu, tol, max_iters)
+
+
+def _factorise(xy: np.ndarray, idx: np.ndarray, similarity: bool, nu: float | None, tol: float,
+               max_iters: int) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """:func:`factorise_motion` of checked arguments."""
+    A, _, _, _ = _chain(xy, idx, similarity)
     P = xy[:, idx]
     vis = ~np.isnan(P[:, :, 0])
     frames = np.flatnonzero(vis.sum(axis=1) >= 3)
@@ -223,9 +283,17 @@ def part_motion(xy: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray
     turning or sliding in a plane facing the camera, and thin parts, whose affine is
     ill-determined across them) or an affine (6: foreshortening, a lid turning about a hinge in
     the image plane)."""
+    xy = _check_xy(xy)
+    idx = _check_indices(idx, xy.shape[1])
+    if idx.size < 3:
+        raise InputError(f"a part's motion needs at least 3 tracks, got {idx.size}")
+    return _part_motion(xy, idx)
+
+
+def _part_motion(xy: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     best = None
     for sim in (True, False):
-        A, seg, rss, n = factorise_motion(xy, idx, similarity=sim)
+        A, seg, rss, n = _factorise(xy, idx, sim, 4.0, 1e-6, 200)
         k = (4 if sim else 6) * int((seg >= 0).sum())
         bic = n * math.log(max(rss, 1e-12) / max(n, 1)) + k * math.log(max(n, 2))
         if best is None or bic < best[0]:
@@ -281,10 +349,16 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
     inliers are the candidates that stay within ``tol = 3 sigma + 1 px + 2%`` of their own motion
     of where it carries them. The best hypothesis (inliers weighted by how far they move) is
     refined twice over the whole video with all its inliers."""
-    rng = np.random.default_rng(seed)
+    _check_tracks(tracks)
+    sigma = _check_sigma(sigma)
+    check_range("max_parts", max_parts, 1, 10**4, integer=True)
+    check_range("iters", iters, 1, 10**7, integer=True)
+    check_range("min_tracks", min_tracks, 3, 10**6, integer=True)
+    cand = _check_indices(cand, tracks.xy.shape[1], "cand")
+    rng = np.random.default_rng(check_seed(seed, "seed"))
     xy, start, far = tracks.xy, tracks.start, tracks.excursion
     parts: list[Part] = []
-    left = np.asarray(cand, dtype=int)
+    left = cand
     base_tol = 3 * sigma + 1.0
     while len(parts) < max_parts and len(left) >= min_tracks:
         tol = base_tol + 0.02 * far[left]
@@ -298,7 +372,7 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
             (u, v), (p, q) = start[s[1]] - start[s[0]], start[s[2]] - start[s[0]]
             if abs(u * q - v * p) < 50:  # twice the triangle's area
                 continue
-            A, seg, _, _ = chain_affines(xy, s)
+            A, seg, _, _ = _chain(xy, s)
             r = _residuals(xy, A, seg, left)
             inl = ~np.isnan(r) & (r < tol)
             score = far[left][inl].sum()
@@ -308,13 +382,13 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
             break
         inl = best[1]
         for _ in range(2):
-            A, seg, _, _ = chain_affines(xy, left[inl])
+            A, seg, _, _ = _chain(xy, left[inl])
             r = _residuals(xy, A, seg, left)
             new = ~np.isnan(r) & (r < tol)
             if new.sum() < min_tracks:
                 break
             inl = new
-        A, seg, kind = part_motion(xy, left[inl])
+        A, seg, kind = _part_motion(xy, left[inl])
         parts.append(Part(left[inl], A, seg, float(np.median(far[left[inl]])), kind))
         left = left[~inl]
     parts.sort(key=lambda p: -p.motion * np.sqrt(len(p.tracks)))

@@ -134,6 +134,8 @@ def test_fit_circle_2d_refuses_bad_weights_and_init():
     ([0, 1, 2], np.column_stack([np.cos([0, 1, 2, 3]), np.sin([0, 1, 2, 3])]), r"t must hold one time per point \(4\)"),
     ([0, 1, np.nan], np.column_stack([np.cos([0, 1, 2]), np.sin([0, 1, 2])]), "t contains NaN"),
     (np.arange(5.0), np.ones((5, 2)), "one line"),
+    # one time for every point: LAPACK printed "On entry to DLASCL ..." and the SVD did not converge
+    (np.zeros(6), np.column_stack([np.cos(np.arange(6.0)), np.sin(np.arange(6.0))]), "at least two different times"),
 ])
 def test_fit_circle_joint_refuses_bad_input(t, P, match, capfd):
     with pytest.raises(InputError, match=match):

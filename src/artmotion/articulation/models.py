@@ -236,6 +236,8 @@ def fit_circle_joint(t: np.ndarray, P: np.ndarray, theta0: float | None = None, 
     if not np.all(np.isfinite(t)):
         raise InputError("t contains NaN or infinite values")
     _check_circle_points(P, "P")
+    if not np.ptp(t) > 0:      # (the angle's rate needs two times: LAPACK failed on one, printing to stderr)
+        raise InputError("t must hold at least two different times (the angle turns at a rate w over time)")
     if theta0 is not None:
         theta0 = check_range("theta0", theta0, -math.inf, math.inf, lo_open=True, hi_open=True)
     if omega is not None:

@@ -193,3 +193,13 @@ def test_grounding_models_are_scikit_learn_estimators(cls):
         np.testing.assert_array_equal(again.visual_to_audio(X), est.visual_to_audio(X))
     fresh = clone(est)
     assert fresh.get_params() == est.get_params() and not any(k.endswith("_") for k in vars(fresh))
+
+
+def test_describe_refuses_an_event_given_twice_as_an_events_file_does():
+    # the same enter event twice was told twice ("a person enters ... " two times); read_events
+    # refuses a repeated line, describe's API took the same list
+    rows = np.array([[f, 1, 10.0 + 5 * f, 50.0, 20.0, 40.0, 1, -1, -1, -1] for f in range(1, 30)])
+    ev = {"type": "enter", "frame": 1, "tracks": [1], "side": "left"}
+    assert describe(rows, [ev], fps=25.0, image_size=(320, 240))      # once: fine
+    with pytest.raises(InputError, match=r"event 2: the same event as event 1 \(repeated\)"):
+        describe(rows, [ev, dict(ev)], fps=25.0, image_size=(320, 240))

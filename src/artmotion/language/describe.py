@@ -20,6 +20,7 @@ The pose attribute "opens"/"closes" is read from the opening angle with hysteres
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -628,10 +629,15 @@ def describe(
             events = list(events)       # (read twice: a generator was empty the second time, its events lost)
         except TypeError:
             raise InputError(f"events must be a list of event dicts, got {type(events).__name__}") from None
+    seen: dict[str, int] = {}
     for k, ev in enumerate(events or []):       # types outside the grammar are passed over, unread
         problem = event_problem(ev) if not isinstance(ev, dict) or ev.get("type") in EVENT_TYPES else None
         if problem is not None:
             raise InputError(f"event {k + 1}: {problem}")
+        key = json.dumps(ev, sort_keys=True, default=repr)    # (as read_events: it would be told twice)
+        if key in seen:
+            raise InputError(f"event {k + 1}: the same event as event {seen[key]} (repeated)")
+        seen[key] = k + 1
     if fps is not None:
         check_range("fps", fps, MIN_FPS, MAX_FPS)
     if check_bool("size_known", size_known) and image_size is not None:

@@ -362,3 +362,17 @@ def test_the_interval_of_an_error_does_not_go_below_zero():
     assert _interval([-1.0, 0.5])["low"] < 0.0          # (a signed quantity keeps its interval)
     got = _interval([0.30, 0.31, 0.29, 0.30])
     assert 0.27 < got["low"] < 0.30 < got["high"] < 0.33
+
+
+def test_monte_carlo_reports_progress_after_each_back_ends_run_and_the_same_results():
+    calls = []
+    kw = dict(runs=2, steps=20, seed=3, backends=("ekf", "ekf_gated"))
+    res = monte_carlo(**kw, on_run=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    plain = monte_carlo(**kw)
+    for name in kw["backends"]:
+        assert res[name]["translation_error"] == plain[name]["translation_error"]
+    from artmotion.errors import InputError
+
+    with pytest.raises(InputError, match="on_run must be a function"):
+        monte_carlo(**kw, on_run="yes")

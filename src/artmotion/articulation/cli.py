@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Optional
 
@@ -153,8 +154,6 @@ def video(
                                                              "dark first frames show fewer)."),
 ):
     """Find the parts that move in a video and name the joint of the one that moves most."""
-    import sys
-
     from artmotion.articulation.video import analyze_video
 
     if focal is not None:
@@ -301,8 +300,20 @@ def simulate(
         from artmotion.io import check_writable
 
         check_writable(plot)  # before the simulation
-    res = monte_carlo(runs=runs, steps=steps, world=world, seed=seed, backends=names, landmarks=counts,
-                      keep_last=plot is not None)
+    def simulate_all(on_run=None):
+        return monte_carlo(runs=runs, steps=steps, world=world, seed=seed, backends=names, landmarks=counts,
+                           keep_last=plot is not None, on_run=on_run)
+
+    if sys.stderr.isatty():      # (a large world runs for minutes per run: say how far it is)
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(TextColumn("runs x back ends"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      transient=True, console=Console(stderr=True)) as progress:
+            task = progress.add_task("simulate", total=runs * len(names))
+            res = simulate_all(lambda done, total: progress.update(task, completed=done, total=total))
+    else:
+        res = simulate_all()
     last = res.pop("_last", None)
     if plot is not None and last is not None:
         last_world, last_sim, last_results = last

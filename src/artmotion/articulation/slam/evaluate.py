@@ -5,7 +5,7 @@ from __future__ import annotations
 import inspect
 import reprlib
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -189,7 +189,8 @@ def _interval(values) -> dict:
 
 def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2", seed: int = 0, lag: int = 0,
                 backends=("articulated", "ekf", "ekf_gated"), keep_last: bool = False,
-                landmarks: tuple[int, int, int] | None = None, options: dict | None = None) -> dict:
+                landmarks: tuple[int, int, int] | None = None, options: dict | None = None,
+                on_run: Callable[[int, int], None] | None = None) -> dict:
     """Errors of the ``backends`` over ``runs`` simulated runs of ``world`` (Table 4.2 and the other
     scenarios of :data:`~artmotion.articulation.slam.world.WORLDS`), each back end on the same runs.
 
@@ -197,7 +198,8 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
     ``nees``: the robot pose's NEES averaged over steps and runs (3 if consistent); ``seconds_per_step``.
     A smoother is scored on its final path (``smoothed``). ``landmarks = (all, prismatic, revolute)``
     replaces the world by :func:`make_world` with those counts; ``options``: back end name -> keyword
-    arguments for it.
+    arguments for it. ``on_run(done, total)`` is called after each back end's run (``total`` = runs
+    times back ends), e.g. to show progress: a large world runs for minutes per run.
     """
     runs = check_range("runs", runs, 1, 10**6, integer=True)
     if steps is not None:
@@ -219,6 +221,8 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
         _check_backend(name)
     backends = names
     options = _check_options(options)
+    if on_run is not None and not callable(on_run):
+        raise InputError(f"on_run must be a function of (done, total), got {reprlib.repr(on_run)}")
     steps = steps or WORLDS[world][1]
     if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= steps:
         raise InputError(f"lag must be a whole number of steps in [0, {steps}] (the run's length; 0: all pairs), got {lag!r}")
@@ -240,6 +244,8 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
             e["seconds_per_step"] = out["seconds"] / steps
             acc[name].append(e)
             res[name] = out
+            if on_run is not None:
+                on_run(r * len(backends) + len(res), runs * len(backends))
         if keep_last:
             last = (w, sim, res)
     summary: dict[str, Any] = {name: {k: _interval([e[k] for e in errs]) for k in errs[0]} for name, errs in acc.items()}

@@ -12,7 +12,6 @@ import glob
 import json
 import os
 import re
-import secrets
 import shutil
 import stat
 from collections.abc import Callable, Iterable, Iterator
@@ -196,7 +195,7 @@ def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path
     ``made`` before the next one is tried."""
     prefix, suffix = _fitting(prefix, suffix)
     for _ in range(1000):
-        name = parent / f"{prefix}{secrets.token_hex(4)}{suffix}"
+        name = parent / f"{prefix}{os.urandom(4).hex()}{suffix}"
         made[:] = [name]
         try:
             if folder:

@@ -37,7 +37,6 @@ import contextlib
 import os
 import re
 import sys
-import tempfile
 import threading
 import zlib
 from collections.abc import Iterator
@@ -484,6 +483,8 @@ def _stderr_captured(native: tuple[str, ...]) -> Iterator[list[str]]:
         with stderr_lock:
             scratch = getattr(_capture, "file", None)
             if scratch is None:
+                import tempfile  # (only where a codec decodes: image folders never need it)
+
                 scratch = _capture.file = tempfile.TemporaryFile()
             scratch.seek(0)
             scratch.truncate()

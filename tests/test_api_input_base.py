@@ -340,7 +340,8 @@ def test_write_events_output_is_unchanged(tmp_path):
 
 
 @pytest.mark.parametrize("value", [[1 + 2j, 3.0], ["1.5", "2"], np.array(["1"]), [1, "a"], np.array([1, "2"], dtype=object),
-                                   np.array([1j])])
+                                   np.array([1j]), np.array([np.complex64(1 + 2j), 1.0], dtype=object),
+                                   np.array([np.array(1j), 1.0], dtype=object)])
 def test_float_array_refuses_text_and_complex_numbers(value):
     # NumPy parses "1.5" and drops an imaginary part with only a ComplexWarning: an observation of
     # 1+2j was taken as 1, and text as the number it spells

@@ -113,6 +113,13 @@ def need_package(module: str, extra: str, what: str) -> None:
         raise InputError(f"{module} is not installed ({what} needs it): pip install 'artmotion[{extra}]' (or make install)")
 
 
+def _not_real(value) -> bool:
+    """Text, or a complex number of any kind (Python's, NumPy's scalars and arrays)."""
+    import numpy as np
+
+    return isinstance(value, (str, bytes)) or bool(np.iscomplexobj(value))
+
+
 def float_array(value, name: str):
     """``value`` as a float NumPy array, else an :class:`InputError` saying that ``name`` must be
     an array of numbers (text, ragged lists, objects, complex numbers: NumPy would parse ``"1.5"``
@@ -121,9 +128,7 @@ def float_array(value, name: str):
 
     try:
         arr = np.asarray(value)
-        if arr.dtype.kind == "O" and any(isinstance(v, (str, bytes, complex)) for v in arr.flat):
-            raise TypeError
-        if arr.dtype.kind in "cSUV":
+        if arr.dtype.kind in "cSUV" or (arr.dtype.kind == "O" and any(_not_real(v) for v in arr.flat)):
             raise TypeError
         return arr.astype(float, copy=False)
     except (TypeError, ValueError):

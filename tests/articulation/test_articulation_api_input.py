@@ -479,7 +479,7 @@ def _segment_cases():
         (lambda: S.rest_frames(30, -1), "rest must be a number in"),
         (lambda: S.moving_tracks(T, float("nan")), "sigma must be a number in"),
         (lambda: S.moving_tracks(T, 0.1, move="x"), "move must be a number in"),
-        (lambda: S.chain_affines(xy, np.array([100, 200, 300])), r"idx must index the 20 tracks \(0 to 19\), got 100 to 300"),
+        (lambda: S.chain_affines(xy, np.array([100, 200, 300])), r"idx must index the 20 tracks \(-20 to 19\), got 100 to 300"),
         (lambda: S.chain_affines(xy[0], np.array([0, 1, 2])), r"xy must be track positions of shape \(frames, tracks, 2\)"),
         (lambda: S.chain_affines(np.full((3, 4, 2), np.inf), [0, 1, 2]), "xy must be finite"),
         (lambda: S.factorise_motion(xy, np.array([0.5, 1.5, 2.5])), "idx must be a 1-D array of track indices"),
@@ -490,7 +490,7 @@ def _segment_cases():
         (lambda: S.rigid_parts(T, np.arange(20), 0.1, max_parts=0), "max_parts must be a whole number"),
         (lambda: S.rigid_parts(T, np.arange(20), 0.1, iters=-1), "iters must be a whole number"),
         (lambda: S.rigid_parts(T, np.arange(20), 0.1, min_tracks=0), "min_tracks must be a whole number"),
-        (lambda: S.rigid_parts(T, np.arange(20), 0.0), "sigma must be a number in"),
+        (lambda: S.rigid_parts(T, np.arange(20), -0.1), "sigma must be a number in"),
         (lambda: S.rigid_parts(T, np.arange(20), 0.1, seed=-1), "seed must be a whole number"),
     ]
 
@@ -503,6 +503,24 @@ def test_video_segmentation_stages_refuse_bad_arguments_by_name(case):
     call, message = _segment_cases()[case]
     with pytest.raises(InputError, match=message):
         call()
+
+
+def test_video_segmentation_stages_take_what_numpy_takes():
+    # whole-number floats as counts (iters=200.0 passed the check and then failed in range()),
+    # negative and whole-number float indices, a seed of None or a Generator, sigma 0 and tol 0
+    from artmotion.articulation.video import segment as S
+    from artmotion.articulation.video.tracks import PointTracks
+
+    rng = np.random.default_rng(2)
+    xy = np.cumsum(rng.normal(0, 0.1, (12, 10, 2)), axis=0) + rng.uniform(0, 100, (1, 10, 2))
+    T = PointTracks(xy, 30.0, 200, 200)
+    a = S.chain_affines(xy, [-1, -2, -3])
+    assert all(np.array_equal(u, v) for u, v in zip(a[:2], S.chain_affines(xy, [9, 8, 7])[:2]))
+    assert np.array_equal(S.factorise_motion(xy, np.array([0.0, 1.0, 2.0]), max_iters=1.0, tol=0)[0],
+                          S.factorise_motion(xy, [0, 1, 2], max_iters=1, tol=0)[0])
+    for kw in ({"iters": 20.0, "max_parts": 2.0, "min_tracks": 3.0}, {"seed": None}, {"seed": np.random.default_rng(0)}):
+        assert isinstance(S.rigid_parts(T, np.arange(10), 0.0, **kw), list)
+    assert S.camera_motion(T, 0.0)[0] in (True, False) and len(S.moving_tracks(T, 0.0)) >= 0
 
 
 def test_video_segmentation_stages_take_a_mask_as_indices():

@@ -311,11 +311,14 @@ def test_fitted_is_the_robust_fit_on_a_copy():
 def test_online_update_refuses_a_time_stamp_given_as_text_or_a_bool_and_a_complex_point():
     from artmotion.errors import InputError
 
+    from decimal import Decimal
+
     est = OnlineEstimator()
-    for t in ("1.5", True, b"2"):
-        with pytest.raises(InputError, match="a time stamp must be a number"):
+    for t in ("1.5", True, np.bool_(False), b"2", 1 + 0j, [1.5]):
+        with pytest.raises(InputError, match=r"a time stamp must be a \(real\) number"):
             est.update([0.0, 0.0, 0.0], t)
     with pytest.raises(InputError, match="an observation must be an array of numbers"):
         est.update([1 + 2j, 0.0, 0.0], 1.0)
-    est.update([0.0, 0.0, 0.0], np.float32(1.0))     # NumPy numbers are numbers
-    assert est._n == 1
+    for k, t in enumerate((np.float32(1.0), np.array(2.0), Decimal("3"), 4)):     # real numbers of any kind
+        est.update([0.0, 0.0, 0.0], t)
+        assert est._n == k + 1

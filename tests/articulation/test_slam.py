@@ -376,3 +376,6 @@ def test_monte_carlo_reports_progress_after_each_back_ends_run_and_the_same_resu
 
     with pytest.raises(InputError, match="on_run must be a function"):
         monte_carlo(**kw, on_run="yes")
+    calls.clear()       # a back end listed twice (the API keeps both) counts twice
+    monte_carlo(**{**kw, "backends": ("ekf", "ekf")}, on_run=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 4), (2, 4), (3, 4), (4, 4)]

@@ -525,3 +525,17 @@ def test_tool_detector_has_scikit_learns_parameter_protocol():
     assert repr(det) == "ToolDetector(epochs=3, threshold=0.2)"
     with pytest.raises(InputError, match="'depth' is not a parameter of ToolDetector"):
         det.set_params(depth=2)
+
+
+def test_a_fitted_tool_detectors_threshold_set_later_is_checked_where_it_is_used():
+    # set_params checks nothing (scikit-learn's convention); a threshold of NaN set on a trained
+    # model found 0 heads without a word, -1 returned every faint peak, "0.3" failed deep in NumPy
+    frames = [np.full((32, 32, 3), 90, np.uint8) for _ in range(2)]
+    det = ToolDetector(epochs=1, batch=2, width=4).fit(frames, [np.array([[16.0, 16, 8, 0]])] * 2)
+    for bad in (float("nan"), -1.0, "0.3", 1.0):
+        det.set_params(threshold=bad)
+        with pytest.raises(InputError, match="threshold must be a number in"):
+            det.detect(frames[0])
+    det.set_params(threshold=0.05)
+    assert det.detect(frames[0]).shape[1] == 5
+

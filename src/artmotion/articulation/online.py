@@ -61,7 +61,6 @@ from __future__ import annotations
 
 import copy
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -855,9 +854,13 @@ class OnlineEstimator(Params):
         if t is None:
             t = float(k)
         else:
-            if not isinstance(t, numbers.Real) or isinstance(t, bool):
-                raise InputError(f"a time stamp must be a number, got {t!r}")
-            t = float(t)
+            try:
+                stamp = np.asarray(t)
+                if stamp.ndim or stamp.dtype.kind in "bcSUV":      # (float() takes "1.5", True, [1.5])
+                    raise TypeError
+                t = float(t)
+            except (TypeError, ValueError):
+                raise InputError(f"a time stamp must be a (real) number, got {t!r}") from None
             if not math.isfinite(t):
                 raise InputError(f"time stamps must be finite, got {t}")
         if k and not t > self._Tbuf[k - 1]:

@@ -20,7 +20,6 @@ The pose attribute "opens"/"closes" is read from the opening angle with hysteres
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -32,7 +31,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_bool, check_range, float_array
 from artmotion.geometry import box_center
-from artmotion.io.events import EVENT_TYPES, event_problem
+from artmotion.io.events import EVENT_TYPES, event_key, event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID, check_ids, check_mot_rows
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
@@ -629,12 +628,14 @@ def describe(
             events = list(events)       # (read twice: a generator was empty the second time, its events lost)
         except TypeError:
             raise InputError(f"events must be a list of event dicts, got {type(events).__name__}") from None
-    seen: dict[str, int] = {}
+    seen: dict[tuple, int] = {}
     for k, ev in enumerate(events or []):       # types outside the grammar are passed over, unread
-        problem = event_problem(ev) if not isinstance(ev, dict) or ev.get("type") in EVENT_TYPES else None
+        if isinstance(ev, dict) and ev.get("type") not in EVENT_TYPES:
+            continue
+        problem = event_problem(ev)
         if problem is not None:
             raise InputError(f"event {k + 1}: {problem}")
-        key = json.dumps(ev, sort_keys=True, default=repr)    # (as read_events: it would be told twice)
+        key = event_key(ev)         # (as read_events: it would be told twice)
         if key in seen:
             raise InputError(f"event {k + 1}: the same event as event {seen[key]} (repeated)")
         seen[key] = k + 1

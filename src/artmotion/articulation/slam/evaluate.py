@@ -228,6 +228,7 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
         raise InputError(f"lag must be a whole number of steps in [0, {steps}] (the run's length; 0: all pairs), got {lag!r}")
     acc: dict[str, list[dict[str, float]]] = {name: [] for name in backends}
     last = None
+    done = 0
     for r in range(runs):
         s = seed + 1000 * r
         # (the seeds of later runs may pass 2**32 - 1: NumPy's generators take them)
@@ -244,8 +245,9 @@ def monte_carlo(runs: int = 20, steps: int | None = None, world: str = "table4.2
             e["seconds_per_step"] = out["seconds"] / steps
             acc[name].append(e)
             res[name] = out
+            done += 1
             if on_run is not None:
-                on_run(r * len(backends) + len(res), runs * len(backends))
+                on_run(done, runs * len(backends))
         if keep_last:
             last = (w, sim, res)
     summary: dict[str, Any] = {name: {k: _interval([e[k] for e in errs]) for k in errs[0]} for name, errs in acc.items()}

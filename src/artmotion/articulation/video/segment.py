@@ -37,8 +37,9 @@ def _check_tracks(tracks) -> PointTracks:
 
 
 def _check_sigma(sigma) -> float:
-    """The tracks' noise (px): a positive number, as :func:`noise_level` gives."""
-    return float(check_range("sigma", sigma, 0.0, 1e6, lo_open=True))
+    """The tracks' noise (px): a number >= 0 (:func:`noise_level` gives at least 0.05; 0 for
+    noiseless synthetic tracks)."""
+    return float(check_range("sigma", sigma, 0.0, 1e6))
 
 
 def _check_xy(xy) -> np.ndarray:
@@ -52,17 +53,19 @@ def _check_xy(xy) -> np.ndarray:
 
 
 def _check_indices(idx, n: int, name: str = "idx") -> np.ndarray:
-    """Track indices into ``n`` tracks (whole numbers in [0, n), or a boolean mask of length ``n``)."""
+    """Track indices into ``n`` tracks (whole numbers in [-n, n), as NumPy indexes; or a boolean
+    mask of length ``n``), as indices in [0, n)."""
     arr = np.asarray(idx)
     if arr.dtype == bool:
         if arr.shape != (n,):
             raise InputError(f"{name} as a mask must have one entry per track ({n}), got shape {arr.shape}")
         return np.flatnonzero(arr)
-    if arr.ndim != 1 or (arr.size and arr.dtype.kind not in "iu"):
+    whole = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)))
+    if arr.ndim != 1 or (arr.size and not whole):
         raise InputError(f"{name} must be a 1-D array of track indices (whole numbers), got {arr.dtype} of shape {arr.shape}")
-    if arr.size and (arr.min() < 0 or arr.max() >= n):
-        raise InputError(f"{name} must index the {n} tracks (0 to {n - 1}), got {int(arr.min())} to {int(arr.max())}")
-    return arr.astype(int)
+    if arr.size and (arr.min() < -n or arr.max() >= n):
+        raise InputError(f"{name} must index the {n} tracks (-{n} to {n - 1}), got {int(arr.min())} to {int(arr.max())}")
+    return arr.astype(int) % max(n, 1)
 
 
 def camera_motion(tracks: PointTracks, sigma: float) -> tuple[bool, PointTracks]:
@@ -231,9 +234,9 @@ def factorise_motion(xy: np.ndarray, idx: np.ndarray, similarity: bool = False, 
     xy = _check_xy(xy)
     idx = _check_indices(idx, xy.shape[1])
     if nu is not None:
-        check_range("nu", nu, 0.0, 1e6, lo_open=True)
-    check_range("tol", tol, 0.0, 1.0, lo_open=True)
-    check_range("max_iters", max_iters, 1, 10**6, integer=True)
+        nu = check_range("nu", nu, 0.0, 1e6, lo_open=True)
+    tol = check_range("tol", tol, 0.0, 1.0)      # (0: run all max_iters)
+    max_iters = check_range("max_iters", max_iters, 1, 10**6, integer=True)
     return _factorise(xy, idx, bool(similarity), nu, tol, max_iters)
 
 
@@ -351,11 +354,12 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
     refined twice over the whole video with all its inliers."""
     _check_tracks(tracks)
     sigma = _check_sigma(sigma)
-    check_range("max_parts", max_parts, 1, 10**4, integer=True)
-    check_range("iters", iters, 1, 10**7, integer=True)
-    check_range("min_tracks", min_tracks, 3, 10**6, integer=True)
+    max_parts = check_range("max_parts", max_parts, 1, 10**4, integer=True)
+    iters = check_range("iters", iters, 1, 10**7, integer=True)
+    min_tracks = check_range("min_tracks", min_tracks, 3, 10**6, integer=True)
     cand = _check_indices(cand, tracks.xy.shape[1], "cand")
-    rng = np.random.default_rng(check_seed(seed, "seed"))
+    # a seed as NumPy's generators take it: a whole number, None (fresh entropy) or a Generator
+    rng = np.random.default_rng(seed if seed is None or isinstance(seed, np.random.Generator) else check_seed(seed, "seed"))
     xy, start, far = tracks.xy, tracks.start, tracks.excursion
     parts: list[Part] = []
     left = cand

@@ -193,6 +193,8 @@ class ToolDetector(Params):
     def _check_fitted(self):
         if not hasattr(self, "model_"):
             raise InputError("the tool detector is not trained (fit it or load a model)")
+        # (a fitted model's threshold may have been set since: set_params checks nothing, as scikit-learn's)
+        check_range("threshold", self.threshold, 0.0, 1.0, lo_open=True, hi_open=True)
 
     def detect(self, frame: np.ndarray) -> np.ndarray:
         """Heads in one BGR frame: ``(k, 5)`` x, y, size, angle, score, best first."""

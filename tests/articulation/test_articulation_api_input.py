@@ -531,3 +531,37 @@ def test_video_segmentation_stages_take_a_mask_as_indices():
     mask = np.array([True, True, False, True, False, False])
     a, b = S.chain_affines(xy, mask), S.chain_affines(xy, [0, 1, 3])
     assert all(np.array_equal(u, v) for u, v in zip(a[:2], b[:2])) and a[2:] == b[2:]
+
+
+def _joint_cases():
+    from artmotion.articulation.video import joint as J
+    from artmotion.articulation.video import segment as S
+    from artmotion.articulation.video.tracks import PointTracks
+
+    rng = np.random.default_rng(0)
+    xy = np.cumsum(rng.normal(0, 0.1, (30, 20, 2)), axis=0) + rng.uniform(0, 100, (1, 20, 2))
+    T = PointTracks(xy, 30.0, 200, 200)
+    A, seg, kind = S.part_motion(xy, np.arange(10))
+    P = S.Part(np.arange(10), A, seg, 3.0, kind)
+    return [
+        (lambda: J.plane_rectifier("a"), "L must be an array of numbers"),
+        (lambda: J.plane_rectifier(np.zeros((3, 3))), r"L must be linear maps of shape \(frames, 2, 2\)"),
+        (lambda: J.plane_rectifier(np.full((4, 2, 2), np.nan)), "L must be finite maps"),
+        (lambda: J.lift_part(xy, P), "tracks must be a PointTracks"),
+        (lambda: J.lift_part(T, "p"), "part must be a Part"),
+        (lambda: J.lift_part(T, P, focal=-1), "focal must be a number in"),
+        (lambda: J.lift_part(T, P, focal=float("nan")), "focal must be a number in"),
+        (lambda: J.lift_part(T, S.Part(np.array([50, 60, 70]), A, seg, 3.0, kind)),
+         r"part.tracks must index the 20 tracks \(0 to 19\), got 50 to 70"),
+        (lambda: J.lift_part(T, S.Part(np.arange(10), A[:5], seg, 3.0, kind)), r"needs part.A of shape \(30, 2, 3\)"),
+        (lambda: J.classify_part(T, P, foo=1), "'foo' is not an option of the model choice"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(10))
+def test_video_joint_stage_refuses_bad_arguments_by_name(case):
+    # bare LinAlgError / AttributeError / IndexError / TypeError before, and a negative or NaN
+    # focal length lifted the part without a word
+    call, message = _joint_cases()[case]
+    with pytest.raises(InputError, match=message):
+        call()

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from artmotion.articulation.video.joint import MAX_FOCAL
 from artmotion.articulation.video.segment import Part
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.errors import InputError, check_range, check_seed
@@ -33,10 +34,9 @@ if TYPE_CHECKING:
 
 __all__ = ["VideoArticulation", "analyze_video", "analyze_tracks", "draw_parts", "parts_strip", "snapshot_frames"]
 
-#: most moving parts the part search looks for, and the largest focal length (pixels): the
-#: ranges the command line (``articulation video``) takes
+#: most moving parts the part search looks for: the range the command line (``articulation
+#: video``) takes (the largest focal length is :data:`~.joint.MAX_FOCAL`)
 MAX_PARTS = 20
-MAX_FOCAL = 1e7
 
 
 def _check_options(focal, max_parts, seed) -> None:

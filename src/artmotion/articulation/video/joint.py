@@ -25,12 +25,16 @@ import math
 
 import numpy as np
 
-from artmotion.articulation.online import estimate_online
-from artmotion.articulation.video.segment import Part
+from artmotion.articulation.online import OnlineEstimator, estimate_online
+from artmotion.articulation.video.segment import Part, check_part
 from artmotion.articulation.video.tracks import PointTracks
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.geometry.affine import apply, invert
 
-__all__ = ["TEMPERATURE", "plane_rectifier", "lift_part", "classify_part"]
+__all__ = ["MAX_FOCAL", "TEMPERATURE", "plane_rectifier", "lift_part", "classify_part"]
+
+#: the largest focal length (pixels) the lift takes: the range the command line takes
+MAX_FOCAL = 1e7
 
 #: Algorithm 1's temperature ``T`` for a video's lifted point tracks: each track's ``n`` samples
 #: count as ``T n / tau`` (``tau`` their residuals' autocorrelation time), so 1 is the plain count of
@@ -67,6 +71,11 @@ def plane_rectifier(L: np.ndarray) -> np.ndarray | None:
     above at a slant) maps by ``L_t = K R_t K^-1``: the ellipse ``S = K K^T`` (the image of a circle
     in that plane) is invariant, ``L_t S L_t^T = S`` up to scale; solved linearly over all frames,
     and accepted when it is unique (one null direction) and an ellipse (positive definite)."""
+    L = float_array(L, "L")
+    if L.ndim != 3 or L.shape[1:] != (2, 2) or not len(L):
+        raise InputError(f"L must be linear maps of shape (frames, 2, 2), got shape {L.shape}")
+    if not np.isfinite(L).all():
+        raise InputError("L must be finite maps")
     rows = []
     for M in L:
         M = M / math.sqrt(abs(np.linalg.det(M)) or 1.0)
@@ -95,6 +104,9 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     """Reference frame ``r``, frames used, and the part's points lifted to 3-D at each of them:
     ``(r, frames, P)`` with ``P`` of shape ``(len(frames), n_points, 3)`` (px at the reference
     distance; x right, y down, z away from the camera)."""
+    check_part(tracks, part)
+    if focal is not None:
+        check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True)
     focal = focal or tracks.width / (2 * math.tan(math.radians(30)))
     used = np.flatnonzero(part.segment >= 0)
     A = part.A
@@ -137,6 +149,10 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     motion over the part's total. (A weighted product of them, the logarithmic pool, lets one
     point that gives a model a probability of 1e-200 veto all the others.) The axis and range
     come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
+    unknown = sorted(set(choice) - set(OnlineEstimator._param_names()))
+    if unknown:
+        raise InputError(f"{', '.join(map(repr, unknown))} is not an option of the model choice "
+                         f"(OnlineEstimator's: {', '.join(OnlineEstimator._param_names())})")
     diag = math.hypot(tracks.width, tracks.height)
     radius_range = radius_range or (0.02 * diag, 1.0 * diag)
     r, used, P = lift_part(tracks, part, focal)

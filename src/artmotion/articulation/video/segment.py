@@ -26,8 +26,8 @@ from artmotion.articulation.video.tracks import PointTracks
 from artmotion.errors import InputError, check_range, check_seed, float_array
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
-__all__ = ["Part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines", "factorise_motion",
-           "part_motion"]
+__all__ = ["Part", "check_part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines",
+           "factorise_motion", "part_motion"]
 
 
 def _check_tracks(tracks) -> PointTracks:
@@ -342,6 +342,27 @@ class Part:
     def frames(self) -> tuple[int, int]:
         f = np.flatnonzero(self.segment >= 0)
         return (int(f[0]), int(f[-1])) if f.size else (0, 0)
+
+
+def check_part(tracks: PointTracks, part) -> Part:
+    """``part`` a :class:`Part` of ``tracks`` (its track indices in range, one map and one segment
+    number per frame), else an :class:`InputError`."""
+    _check_tracks(tracks)
+    if not isinstance(part, Part):
+        raise InputError(f"part must be a Part (artmotion.articulation.video.segment), got {type(part).__name__}")
+    F, n = tracks.xy.shape[:2]
+    idx = np.asarray(part.tracks)
+    if idx.ndim != 1 or idx.size < 3 or idx.dtype.kind not in "iu":
+        raise InputError(f"part.tracks must be at least 3 track indices (whole numbers), got {idx.dtype} of shape {idx.shape}")
+    if idx.min() < 0 or idx.max() >= n:
+        raise InputError(f"part.tracks must index the {n} tracks (0 to {n - 1}), got {int(idx.min())} to {int(idx.max())}")
+    A, seg = np.asarray(part.A), np.asarray(part.segment)
+    if A.shape != (F, 2, 3) or seg.shape != (F,):
+        raise InputError(f"a part of {F}-frame tracks needs part.A of shape ({F}, 2, 3) and part.segment of ({F},), "
+                         f"got {A.shape} and {seg.shape}")
+    if not np.isfinite(A).all():
+        raise InputError("part.A must be finite maps")
+    return part
 
 
 def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: int = 3, iters: int = 200,

@@ -357,3 +357,17 @@ def test_float_array_keeps_real_numbers_of_any_type():
     for value in ([1, 2], np.float32([1.5]), np.array([1, 2], dtype=object), np.int64(3), [[1.0, 2.0]]):
         out = float_array(value, "z")
         assert out.dtype == np.float64 and np.array_equal(out, np.asarray(value, dtype=float))
+
+
+def test_read_events_refuses_only_a_line_repeated_exactly(tmp_path):
+    # a key outside the grammar (a score) or x given as 5 and 5.0 are other lines, read as before
+    from artmotion.io import read_events
+
+    ev = {"type": "enter", "frame": 3, "tracks": [1], "side": "left"}
+    lines = [{**ev, "score": 0.9}, {**ev, "score": 0.5}, {**ev, "x": 5}, {**ev, "x": 5.0}, {**ev, "side": None}, ev]
+    p = tmp_path / "events.jsonl"
+    p.write_text("".join(json.dumps(e) + "\n" for e in lines))
+    assert len(read_events(p)) == 6
+    p.write_text(p.read_text() + json.dumps(ev) + "\n")
+    with pytest.raises(InputError, match=r"events.jsonl:7: the same event as line 6 \(a line repeated\)"):
+        read_events(p)

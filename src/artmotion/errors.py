@@ -113,11 +113,14 @@ def need_package(module: str, extra: str, what: str) -> None:
         raise InputError(f"{module} is not installed ({what} needs it): pip install 'artmotion[{extra}]' (or make install)")
 
 
-def _not_real(value) -> bool:
-    """Text, or a complex number of any kind (Python's, NumPy's scalars and arrays)."""
-    import numpy as np
-
-    return isinstance(value, (str, bytes)) or bool(np.iscomplexobj(value))
+def _holds_non_real(arr, np) -> bool:
+    """Whether an object array holds text or a complex number of any kind (Python's, NumPy's
+    scalars and arrays); by the elements' types, each type looked at once."""
+    types = set(map(type, arr.flat))
+    if any(issubclass(t, (str, bytes, complex, np.complexfloating)) for t in types):
+        return True
+    return any(issubclass(t, np.ndarray) for t in types) and any(
+        isinstance(v, np.ndarray) and v.dtype.kind in "cSUV" for v in arr.flat)
 
 
 def float_array(value, name: str):
@@ -128,7 +131,7 @@ def float_array(value, name: str):
 
     try:
         arr = np.asarray(value)
-        if arr.dtype.kind in "cSUV" or (arr.dtype.kind == "O" and any(_not_real(v) for v in arr.flat)):
+        if arr.dtype.kind in "cSUV" or (arr.dtype.kind == "O" and _holds_non_real(arr, np)):
             raise TypeError
         return arr.astype(float, copy=False)
     except (TypeError, ValueError):

@@ -314,7 +314,7 @@ def test_online_update_refuses_a_time_stamp_given_as_text_or_a_bool_and_a_comple
     from decimal import Decimal
 
     est = OnlineEstimator()
-    for t in ("1.5", True, np.bool_(False), b"2", 1 + 0j, [1.5]):
+    for t in ("1.5", True, np.bool_(False), b"2", 1 + 0j, [1.5], np.array("1", dtype=object)):
         with pytest.raises(InputError, match=r"a time stamp must be a \(real\) number"):
             est.update([0.0, 0.0, 0.0], t)
     with pytest.raises(InputError, match="an observation must be an array of numbers"):

@@ -217,6 +217,11 @@ def test_describe_tells_an_event_once_whatever_else_it_carries():
     assert describe(rows, [ev, note, dict(note)], **kw) == describe(rows, [ev], **kw)
     with pytest.raises(InputError, match=r"event 2: the same event as event 1 \(repeated\)"):
         describe(rows, [ev, {**ev, "frame": np.int64(1), "tracks": [np.int64(1)]}], **kw)
+    # a type or side given as a 0-d array compared equal to its text and crashed the grammar
+    for key in ("type", "side"):
+        with pytest.raises(InputError, match=f"event 1: unknown {'event type' if key == 'type' else 'side'}"):
+            describe(rows, [{**ev, key: np.array(ev[key])}], **kw)
+    assert describe(rows, [{**ev, "side": np.str_("left")}], **kw) == describe(rows, [ev], **kw)
     a, b = np.zeros(2000), np.zeros(2000)
     b[1000] = 1      # what describe does not read makes no other event of it: still the same event
     with pytest.raises(InputError, match="the same event as event 1"):

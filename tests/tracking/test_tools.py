@@ -527,7 +527,7 @@ def test_tool_detector_has_scikit_learns_parameter_protocol():
         det.set_params(depth=2)
 
 
-def test_a_fitted_tool_detectors_threshold_set_later_is_checked_where_it_is_used():
+def test_a_fitted_tool_detectors_threshold_set_later_is_checked_where_it_is_used(tmp_path):
     # set_params checks nothing (scikit-learn's convention); a threshold of NaN set on a trained
     # model found 0 heads without a word, -1 returned every faint peak, "0.3" failed deep in NumPy
     frames = [np.full((32, 32, 3), 90, np.uint8) for _ in range(2)]
@@ -538,4 +538,7 @@ def test_a_fitted_tool_detectors_threshold_set_later_is_checked_where_it_is_used
             det.detect(frames[0])
     det.set_params(threshold=0.05)
     assert det.detect(frames[0]).shape[1] == 5
+    det.set_params(threshold=np.float64(0.3))       # saved as a plain number: load read it back
+    path = det.save(tmp_path / "tool.pt")
+    assert ToolDetector.load(path).threshold == 0.3
 

@@ -856,7 +856,8 @@ class OnlineEstimator(Params):
         else:
             try:
                 stamp = np.asarray(t)
-                if stamp.ndim or stamp.dtype.kind in "bcSUV":      # (float() takes "1.5", True, [1.5])
+                if (stamp.ndim or stamp.dtype.kind in "bcSUV"        # (float() takes "1.5", True, [1.5])
+                        or (stamp.dtype.kind == "O" and isinstance(stamp.item(), (str, bytes, bool, complex)))):
                     raise TypeError
                 t = float(t)
             except (TypeError, ValueError):

@@ -106,7 +106,7 @@ def event_problem(ev) -> str | None:
     """What is wrong with one event object (see the module doc), or ``None``."""
     if not isinstance(ev, dict) or any(k not in ev for k in REQUIRED):
         return f"an event needs keys {', '.join(REQUIRED)}"
-    if ev["type"] not in EVENT_TYPES:
+    if not isinstance(ev["type"], str) or ev["type"] not in EVENT_TYPES:    # (text: an array "enter" compares equal)
         return f"unknown event type {ev['type']!r} (types: {', '.join(EVENT_TYPES)})"
     if not _is_int(ev["frame"]) or not 1 <= ev["frame"] <= MAX_FRAME:
         return f"'frame' must be a positive integer in [1, {MAX_FRAME}], got {ev['frame']!r}"
@@ -117,7 +117,7 @@ def event_problem(ev) -> str | None:
         return f"'tracks' names a track twice: {tracks}"
     if ev["type"] in ("merge", "split") and len(tracks) < 2:
         return f"a {ev['type']} is of two tracks or more, got {tracks}"
-    if ev.get("side") is not None and ev["side"] not in SIDES:
+    if ev.get("side") is not None and (not isinstance(ev["side"], str) or ev["side"] not in SIDES):
         return f"unknown side {ev['side']!r} (sides: {', '.join(SIDES)})"
     if "group" in ev and not (_is_int(ev["group"]) and abs(ev["group"]) <= MAX_ID):
         return f"'group' must be an integer id in [-{MAX_ID}, {MAX_ID}]"
@@ -130,25 +130,13 @@ def event_problem(ev) -> str | None:
     return None
 
 
-def event_key(ev: dict) -> tuple:
-    """What a reader of a valid event (:func:`event_problem` says nothing) takes from it, as plain
-    numbers: two events with one key would be told alike, i.e. twice (``1`` and ``np.int64(1)``
-    alike; keys outside the grammar not looked at)."""
-    def number(v, kind):
-        return None if v is None else kind(v)
-
-    return (ev["type"], int(ev["frame"]), tuple(int(t) for t in ev["tracks"]), ev.get("side"),
-            number(ev.get("group"), int), number(ev.get("end_frame"), int), number(ev.get("x"), float),
-            number(ev.get("y"), float))
-
-
 def read_events(path: str | os.PathLike) -> list[dict]:
     """Read and validate an events file; raise :class:`InputError` naming file and line. An event
     repeated (the same object on two lines) is an error, as a repeated row of a results file is:
     it would be told twice."""
     path = Path(path)
     events = []
-    seen: dict[tuple, int] = {}
+    seen: dict[str, int] = {}
     for lineno, line in enumerate(read_text(path, "an events file").split("\n"), start=1):
         if not line.strip():
             continue
@@ -165,7 +153,7 @@ def read_events(path: str | os.PathLike) -> list[dict]:
                 problem = f"{where} is a number out of range: it overflows to infinity (numbers must be finite)"
         if problem is not None:
             raise InputError(problem, path=path, line=lineno)
-        key = event_key(ev)
+        key = json.dumps(ev, sort_keys=True)
         if key in seen:
             raise InputError(f"the same event as line {seen[key]} (a line repeated)", path=path, line=lineno)
         seen[key] = lineno

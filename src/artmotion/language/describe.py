@@ -31,7 +31,7 @@ import numpy as np
 
 from artmotion.errors import InputError, check_bool, check_range, float_array
 from artmotion.geometry import box_center
-from artmotion.io.events import EVENT_TYPES, event_key, event_problem
+from artmotion.io.events import EVENT_TYPES, event_problem
 from artmotion.io.media import MAX_FPS, MIN_FPS
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID, check_ids, check_mot_rows
 from artmotion.io.table import MAX_ANGLE, cell_number, read_csv
@@ -595,6 +595,18 @@ def _check_classes(classes) -> tuple[str, dict[int, str]]:
     return default_cls.strip(), {tid: name.strip() for tid, name in per_track.items()}
 
 
+def _told(ev: dict) -> tuple:
+    """What :func:`describe` tells of a valid event, as plain values: two events with one key would
+    be told alike (``1`` and ``np.int64(1)`` alike; a position and keys outside the grammar are
+    not told)."""
+    def whole(v):
+        return None if v is None else int(v)
+
+    side = ev.get("side")
+    return (str(ev["type"]), int(ev["frame"]), tuple(int(t) for t in ev["tracks"]),
+            None if side is None else str(side), whole(ev.get("group")), whole(ev.get("end_frame")))
+
+
 def describe(
     tracks: np.ndarray,
     events: list[dict] | None = None,
@@ -635,7 +647,7 @@ def describe(
         problem = event_problem(ev)
         if problem is not None:
             raise InputError(f"event {k + 1}: {problem}")
-        key = event_key(ev)         # (as read_events: it would be told twice)
+        key = _told(ev)         # (read_events refuses a repeated line: it would be told twice)
         if key in seen:
             raise InputError(f"event {k + 1}: the same event as event {seen[key]} (repeated)")
         seen[key] = k + 1

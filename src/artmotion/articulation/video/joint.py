@@ -104,7 +104,7 @@ def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     """Reference frame ``r``, frames used, and the part's points lifted to 3-D at each of them:
     ``(r, frames, P)`` with ``P`` of shape ``(len(frames), n_points, 3)`` (px at the reference
     distance; x right, y down, z away from the camera)."""
-    check_part(tracks, part)
+    part = check_part(tracks, part)
     if focal is not None:
         check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True)
     focal = focal or tracks.width / (2 * math.tan(math.radians(30)))
@@ -149,6 +149,7 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     motion over the part's total. (A weighted product of them, the logarithmic pool, lets one
     point that gives a model a probability of 1e-200 veto all the others.) The axis and range
     come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
+    part = check_part(tracks, part)
     unknown = sorted(set(choice) - set(OnlineEstimator._param_names()))
     if unknown:
         raise InputError(f"{', '.join(map(repr, unknown))} is not an option of the model choice "

@@ -23,7 +23,7 @@ import numpy as np
 
 from artmotion.articulation.online import resolution, robust_scale
 from artmotion.articulation.video.tracks import PointTracks
-from artmotion.errors import InputError, check_range, check_seed, float_array
+from artmotion.errors import InputError, check_range, float_array
 from artmotion.geometry.affine import IDENTITY, apply, compose, invert
 
 __all__ = ["Part", "check_part", "camera_motion", "noise_level", "moving_tracks", "rigid_parts", "chain_affines",
@@ -345,24 +345,23 @@ class Part:
 
 
 def check_part(tracks: PointTracks, part) -> Part:
-    """``part`` a :class:`Part` of ``tracks`` (its track indices in range, one map and one segment
-    number per frame), else an :class:`InputError`."""
+    """``part`` as a :class:`Part` of ``tracks`` with its track indices in [0, n) (given as
+    :func:`chain_affines` takes them), if it has one map and one segment number per frame; else
+    an :class:`InputError`."""
     _check_tracks(tracks)
     if not isinstance(part, Part):
         raise InputError(f"part must be a Part (artmotion.articulation.video.segment), got {type(part).__name__}")
     F, n = tracks.xy.shape[:2]
-    idx = np.asarray(part.tracks)
-    if idx.ndim != 1 or idx.size < 3 or idx.dtype.kind not in "iu":
-        raise InputError(f"part.tracks must be at least 3 track indices (whole numbers), got {idx.dtype} of shape {idx.shape}")
-    if idx.min() < 0 or idx.max() >= n:
-        raise InputError(f"part.tracks must index the {n} tracks (0 to {n - 1}), got {int(idx.min())} to {int(idx.max())}")
+    idx = _check_indices(part.tracks, n, "part.tracks")
+    if not idx.size:
+        raise InputError("part.tracks must name at least one track")
     A, seg = np.asarray(part.A), np.asarray(part.segment)
     if A.shape != (F, 2, 3) or seg.shape != (F,):
         raise InputError(f"a part of {F}-frame tracks needs part.A of shape ({F}, 2, 3) and part.segment of ({F},), "
                          f"got {A.shape} and {seg.shape}")
     if not np.isfinite(A).all():
         raise InputError("part.A must be finite maps")
-    return part
+    return replace(part, tracks=idx)
 
 
 def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: int = 3, iters: int = 200,
@@ -379,8 +378,13 @@ def rigid_parts(tracks: PointTracks, cand: np.ndarray, sigma: float, max_parts: 
     iters = check_range("iters", iters, 1, 10**7, integer=True)
     min_tracks = check_range("min_tracks", min_tracks, 3, 10**6, integer=True)
     cand = _check_indices(cand, tracks.xy.shape[1], "cand")
-    # a seed as NumPy's generators take it: a whole number, None (fresh entropy) or a Generator
-    rng = np.random.default_rng(seed if seed is None or isinstance(seed, np.random.Generator) else check_seed(seed, "seed"))
+    try:        # a seed as NumPy's generators take it (a whole number >= 0, None, a Generator, a SeedSequence ...)
+        if isinstance(seed, (bool, np.bool_)):
+            raise TypeError
+        rng = np.random.default_rng(seed)
+    except (TypeError, ValueError):
+        raise InputError(f"seed must be what numpy.random.default_rng takes (a whole number >= 0, None, a "
+                         f"Generator), got {seed!r}") from None
     xy, start, far = tracks.xy, tracks.start, tracks.excursion
     parts: list[Part] = []
     left = cand

@@ -250,7 +250,7 @@ class ToolDetector(Params):
         from artmotion.io.atomic import atomic_path
 
         self._check_fitted()
-        state = {"format": _FORMAT, "width": self.width, "threshold": self.threshold, "max_heads": self.max_heads_,
+        state = {"format": _FORMAT, "width": self.width, "threshold": float(self.threshold), "max_heads": self.max_heads_,
                  "frame_shape": list(self.frame_shape_), "weights": self.model_.state_dict()}
         if getattr(self, "grey_", None) is not None:
             state["grey"] = bool(self.grey_)

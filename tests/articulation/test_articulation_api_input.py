@@ -462,13 +462,28 @@ def test_fit_poses_takes_no_time_stamps_it_would_ignore():
 # ---------------------------------------------------------------- video segmentation stages
 
 
-def _segment_cases():
-    from artmotion.articulation.video import segment as S
+def _walks(seed: int = 0, frames: int = 30, n: int = 20):
+    """``n`` point tracks wandering for ``frames`` frames (a 200 x 200 image at 30 frames/s): their
+    positions and the PointTracks of them."""
     from artmotion.articulation.video.tracks import PointTracks
 
-    rng = np.random.default_rng(0)
-    xy = np.cumsum(rng.normal(0, 0.1, (30, 20, 2)), axis=0) + rng.uniform(0, 100, (1, 20, 2))
-    T = PointTracks(xy, 30.0, 200, 200)
+    rng = np.random.default_rng(seed)
+    xy = np.cumsum(rng.normal(0, 0.1, (frames, n, 2)), axis=0) + rng.uniform(0, 100, (1, n, 2))
+    return xy, PointTracks(xy, 30.0, 200, 200)
+
+
+def _part_of(xy):
+    """The rigid part of the first ten tracks of ``xy``: the Part and its motion (A, segment, kind)."""
+    from artmotion.articulation.video import segment as S
+
+    A, seg, kind = S.part_motion(xy, np.arange(10))
+    return S.Part(np.arange(10), A, seg, 3.0, kind), A, seg, kind
+
+
+def _segment_cases():
+    from artmotion.articulation.video import segment as S
+
+    xy, T = _walks()
     return [
         (lambda: S.camera_motion(T, "a"), "sigma must be a number in"),
         (lambda: S.camera_motion(T, float("nan")), "sigma must be a number in"),
@@ -495,7 +510,7 @@ def _segment_cases():
     ]
 
 
-@pytest.mark.parametrize("case", range(22))
+@pytest.mark.parametrize("case", range(len(_segment_cases())))
 def test_video_segmentation_stages_refuse_bad_arguments_by_name(case):
     # these were bare TypeError / IndexError / AttributeError / ValueError from inside NumPy, or
     # (a NaN or negative noise level, indices out of range) a silent wrong answer: the camera called
@@ -509,11 +524,8 @@ def test_video_segmentation_stages_take_what_numpy_takes():
     # whole-number floats as counts (iters=200.0 passed the check and then failed in range()),
     # negative and whole-number float indices, a seed of None or a Generator, sigma 0 and tol 0
     from artmotion.articulation.video import segment as S
-    from artmotion.articulation.video.tracks import PointTracks
 
-    rng = np.random.default_rng(2)
-    xy = np.cumsum(rng.normal(0, 0.1, (12, 10, 2)), axis=0) + rng.uniform(0, 100, (1, 10, 2))
-    T = PointTracks(xy, 30.0, 200, 200)
+    xy, T = _walks(2, 12, 10)
     a = S.chain_affines(xy, [-1, -2, -3])
     assert all(np.array_equal(u, v) for u, v in zip(a[:2], S.chain_affines(xy, [9, 8, 7])[:2]))
     assert np.array_equal(S.factorise_motion(xy, np.array([0.0, 1.0, 2.0]), max_iters=1.0, tol=0)[0],
@@ -527,8 +539,7 @@ def test_video_segmentation_stages_take_what_numpy_takes():
 def test_video_segmentation_stages_take_a_mask_as_indices():
     from artmotion.articulation.video import segment as S
 
-    rng = np.random.default_rng(1)
-    xy = np.cumsum(rng.normal(0, 0.1, (10, 6, 2)), axis=0) + rng.uniform(0, 100, (1, 6, 2))
+    xy = _walks(1, 10, 6)[0]
     mask = np.array([True, True, False, True, False, False])
     a, b = S.chain_affines(xy, mask), S.chain_affines(xy, [0, 1, 3])
     assert all(np.array_equal(u, v) for u, v in zip(a[:2], b[:2])) and a[2:] == b[2:]
@@ -537,13 +548,9 @@ def test_video_segmentation_stages_take_a_mask_as_indices():
 def _joint_cases():
     from artmotion.articulation.video import joint as J
     from artmotion.articulation.video import segment as S
-    from artmotion.articulation.video.tracks import PointTracks
 
-    rng = np.random.default_rng(0)
-    xy = np.cumsum(rng.normal(0, 0.1, (30, 20, 2)), axis=0) + rng.uniform(0, 100, (1, 20, 2))
-    T = PointTracks(xy, 30.0, 200, 200)
-    A, seg, kind = S.part_motion(xy, np.arange(10))
-    P = S.Part(np.arange(10), A, seg, 3.0, kind)
+    xy, T = _walks()
+    P, A, seg, kind = _part_of(xy)
     return [
         (lambda: J.plane_rectifier("a"), "L must be an array of numbers"),
         (lambda: J.plane_rectifier(np.zeros((3, 3))), r"L must be linear maps of shape \(frames, 2, 2\)"),
@@ -561,7 +568,7 @@ def _joint_cases():
     ]
 
 
-@pytest.mark.parametrize("case", range(12))
+@pytest.mark.parametrize("case", range(len(_joint_cases())))
 def test_video_joint_stage_refuses_bad_arguments_by_name(case):
     # bare LinAlgError / AttributeError / IndexError / TypeError before, and a negative or NaN
     # focal length lifted the part without a word
@@ -576,14 +583,9 @@ def test_video_joint_stage_takes_a_part_as_segment_takes_its_indices():
     from dataclasses import replace
 
     from artmotion.articulation.video import joint as J
-    from artmotion.articulation.video import segment as S
-    from artmotion.articulation.video.tracks import PointTracks
 
-    rng = np.random.default_rng(0)
-    xy = np.cumsum(rng.normal(0, 0.1, (30, 20, 2)), axis=0) + rng.uniform(0, 100, (1, 20, 2))
-    T = PointTracks(xy, 30.0, 200, 200)
-    A, seg, kind = S.part_motion(xy, np.arange(10))
-    P = S.Part(np.arange(10), A, seg, 3.0, kind)
+    xy, T = _walks()
+    P = _part_of(xy)[0]
     base = J.lift_part(T, P)
     for tracks in (np.arange(10) - 20, np.arange(10.0)):
         r, used, pts = J.lift_part(T, replace(P, tracks=tracks))

@@ -16,6 +16,7 @@ their SHA-256 (``"sha256"``): :func:`check_run_files` tells a run whose files ch
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -351,8 +352,6 @@ def _run_tools_into(out: Path, seq, source, fingerprint: str, tools, object_clas
 
 
 def _sha256(path: Path) -> str:
-    import hashlib
-
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -543,8 +542,6 @@ def source_fingerprint(seq) -> str:
     """A fingerprint of a sequence's content (not its name or place): SHA-256 over the size and
     the first and last MiB of a video, or over the names and sizes of an image folder's frames and
     its first frame's bytes; cheap for any length."""
-    import hashlib
-
     h = hashlib.sha256()
     files = [seq.video] if seq.video is not None else list(seq.images)
     for p in files:
@@ -563,8 +560,6 @@ def input_digest(seq, det=None) -> str:
     whole contents (they are small). With :func:`source_fingerprint` it tells :func:`is_finished` that
     a run is of its input as it is now: new detections or another frame rate in ``seqinfo.ini``
     are run again (they were skipped as "already finished", the run's results stale)."""
-    import hashlib
-
     h = hashlib.sha256()
     folder = Path(seq.path)
     for what, p in (("seqinfo", folder / "seqinfo.ini" if folder.is_dir() else None),
@@ -593,8 +588,6 @@ def default_run_dir(seq, fingerprint: str, root: str | os.PathLike = "runs") -> 
     of one video at two paths in one folder, the second run replacing the first). A name that is
     not one plain path component (:func:`_folder_name`) gives way to the source's own file or
     folder name."""
-    import hashlib
-
     own = Path(seq.path).resolve()
     name = _folder_name(seq.name, _folder_name(own.stem if own.is_file() else own.name, "run"))
     out = Path(root) / name

@@ -978,6 +978,11 @@ class OnlineEstimator(Params):
 
 def estimate_online(X, t=None, **kwargs) -> OnlineResult:
     """Run Algorithm 1 over a whole track ``X`` (``(n, 2)`` or ``(n, 3)``), sample by sample."""
+    known = OnlineEstimator._param_names()      # (a bare TypeError otherwise)
+    unknown = sorted(set(kwargs) - set(known))
+    if unknown:
+        raise InputError(f"{', '.join(map(repr, unknown))} is not an option of the model choice "
+                         f"(OnlineEstimator's: {', '.join(known)})")
     X3, dim = as_points3(X)
     if t is not None:
         t = float_array(t, "time stamps")

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from artmotion.articulation.online import OnlineEstimator, estimate_online
+from artmotion.articulation.online import estimate_online
 from artmotion.articulation.video.segment import Part, check_part
 from artmotion.articulation.video.tracks import PointTracks
 from artmotion.errors import InputError, check_range, float_array
@@ -100,14 +100,23 @@ def _part_points(tracks: PointTracks, part: Part) -> np.ndarray:
     return apply(invert(part.A[tracks.first[part.tracks]]), tracks.start[part.tracks])
 
 
+def _focal(focal, tracks: PointTracks) -> float:
+    """The focal length given (checked), or a 60-degree horizontal field of view's."""
+    if focal is not None:
+        return float(check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True))
+    return tracks.width / (2 * math.tan(math.radians(30)))
+
+
 def lift_part(tracks: PointTracks, part: Part, focal: float | None = None):
     """Reference frame ``r``, frames used, and the part's points lifted to 3-D at each of them:
     ``(r, frames, P)`` with ``P`` of shape ``(len(frames), n_points, 3)`` (px at the reference
     distance; x right, y down, z away from the camera)."""
     part = check_part(tracks, part)
-    if focal is not None:
-        check_range("focal", focal, 0.0, MAX_FOCAL, lo_open=True)
-    focal = focal or tracks.width / (2 * math.tan(math.radians(30)))
+    return _lift(tracks, part, _focal(focal, tracks))
+
+
+def _lift(tracks: PointTracks, part: Part, focal: float):
+    """:func:`lift_part` of checked arguments."""
     used = np.flatnonzero(part.segment >= 0)
     A = part.A
     dets = np.abs(np.linalg.det(A[used, :, :2]))
@@ -150,13 +159,9 @@ def classify_part(tracks: PointTracks, part: Part, focal: float | None = None,
     point that gives a model a probability of 1e-200 veto all the others.) The axis and range
     come from the point with the largest ``w_k p_k(m)`` for the chosen model."""
     part = check_part(tracks, part)
-    unknown = sorted(set(choice) - set(OnlineEstimator._param_names()))
-    if unknown:
-        raise InputError(f"{', '.join(map(repr, unknown))} is not an option of the model choice "
-                         f"(OnlineEstimator's: {', '.join(OnlineEstimator._param_names())})")
     diag = math.hypot(tracks.width, tracks.height)
     radius_range = radius_range or (0.02 * diag, 1.0 * diag)
-    r, used, P = lift_part(tracks, part, focal)
+    r, used, P = _lift(tracks, part, _focal(focal, tracks))
     img = apply(part.A[used][:, None], _part_points(tracks, part)[None])
     span = np.linalg.norm(img - img[:1], axis=2).max(axis=0)   # each point's motion in the image
     w = span / max(float(span.sum()), 1e-12)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
+from artmotion.errors import InputError
 from artmotion.language.grounding import dataset as ds
 
 from .test_features import draw, tone
@@ -264,3 +265,7 @@ def test_eval_and_dataset_never_remove_the_users_files(small_dataset, tmp_path, 
     for _ in range(2):
         ds.make_dataset(again, seed=5, table={"circle": (1, 0, 1, 0)})
     assert json.loads((again / ds.MARKER).read_text())["examples"] == 2
+    (again / "images" / "my_notes.txt").write_text("mine")   # a file of the user's put in it: kept
+    with pytest.raises(InputError, match="not only this command's earlier outputs"):
+        ds.make_dataset(again, seed=5, table={"circle": (1, 0, 1, 0)})
+    assert (again / "images" / "my_notes.txt").read_text() == "mine"

@@ -484,6 +484,42 @@ def test_a_refused_output_folder_says_what_else_it_holds(tmp_path):
         check_out_dir(out, replace=lambda p: False, outputs=("results.txt", "run.json"))
 
 
+def test_a_file_of_the_users_inside_an_earlier_outputs_subfolder_keeps_the_folder(tmp_path, run_cli):
+    """pose render checked only the names at the top of an earlier rendering: a file the user had
+    put in its crops/ (or a folder in it) was deleted without a word when it was rendered again.
+    Now the folder is refused, as for a file of the user's beside the outputs; the earlier
+    rendering alone is still replaced."""
+    from artmotion.io.atomic import outputs_of
+
+    out = tmp_path / "r"
+    assert run_cli("pose", "render", out, "--poses", 3, "--no-frames")[0] == 0
+    code, _, err = run_cli("pose", "render", out, "--poses", 2, "--no-frames")     # its own: replaced
+    assert code == 0 and len(list((out / "crops").iterdir())) == 2, err
+    for mine in (out / "crops" / "precious.txt", out / "crops" / "sub" / "mine.txt"):
+        mine.parent.mkdir(exist_ok=True)
+        mine.write_text("the user's own")
+        code, _, err = run_cli("pose", "render", out, "--poses", 2, "--no-frames")
+        assert code == 2 and "exists, in a folder that is not only this command's earlier outputs" in err, err
+        assert mine.read_text() == "the user's own"
+        mine.unlink()
+        if mine.parent.name == "sub":
+            mine.parent.rmdir()
+    # the test itself: a folder where the command writes a file, or a file where it writes a folder
+    test = outputs_of("m.json", {"a.csv", "crops"}, inside={"crops": r"\d+\.png"})
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "m.json").write_text("{}")
+    (tmp_path / "t" / "crops").mkdir()
+    (tmp_path / "t" / "crops" / "000001.png").write_bytes(b"")
+    assert test(tmp_path / "t")
+    (tmp_path / "t" / "a.csv").mkdir()
+    assert not test(tmp_path / "t")
+    (tmp_path / "t" / "a.csv").rmdir()
+    (tmp_path / "t" / "crops" / "000001.png").unlink()
+    (tmp_path / "t" / "crops").rmdir()
+    (tmp_path / "t" / "crops").write_text("")
+    assert not test(tmp_path / "t")
+
+
 def test_an_output_named_by_a_link_is_written_through_it(tmp_path):
     """The atomic rename put a plain file in place of a link named as the output: a link to a
     file lost its target's update, and ``--out /dev/stdout`` with stdout redirected replaced the

@@ -444,20 +444,38 @@ def _move_in(tmp: Path, path: Path, swap: bool, kept: list[Path]) -> None:
 
 
 def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = (),
-               accept: Callable[[dict], bool] | None = None) -> Callable[[Path], bool]:
+               accept: Callable[[dict], bool] | None = None, inside: dict[str, str] | None = None
+               ) -> Callable[[Path], bool]:
     """A ``replace`` test for :func:`atomic_dir`: the folder holds the JSON object ``marker`` (with
     ``keys``, and that ``accept`` takes if given), written by the same command before, and otherwise
-    only the command's other outputs: ``names``, a regular expression or the names themselves."""
+    only the command's other outputs: ``names``, a regular expression or the names themselves.
+    Those are files, but for the folders ``inside`` names, which hold only files whose names match
+    its regular expression (what the command writes there): a file of the user's own put in one of
+    them, or a folder where a file was written, is not an earlier output, and nothing is replaced."""
     if isinstance(names, str):
         pattern = re.compile(names)
         allowed: Callable[[str], bool] = lambda n: pattern.fullmatch(n) is not None   # noqa: E731
     else:
         allowed = set(names).__contains__
     want = tuple(keys)
+    folders = {name: re.compile(rx) for name, rx in (inside or {}).items()}
+
+    def ours(entry: Path) -> bool:
+        if entry.name == marker or not allowed(entry.name):
+            return entry.name == marker
+        if entry.name not in folders:
+            return not entry.is_dir() or entry.is_symlink()
+        if entry.is_symlink() or not entry.is_dir():
+            return False
+        return all(folders[entry.name].fullmatch(f.name) is not None and f.is_file() and not f.is_symlink()
+                   for f in entry.iterdir())
 
     def test(folder: Path) -> bool:
-        entries = [p.name for p in folder.iterdir()]
-        if marker not in entries or not all(n == marker or allowed(n) for n in entries):
+        try:
+            entries = list(folder.iterdir())
+            if marker not in {p.name for p in entries} or not all(ours(p) for p in entries):
+                return False
+        except OSError:
             return False
         try:
             with open(folder / marker, encoding="utf-8") as fh:

@@ -502,7 +502,8 @@ def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = Fa
 
 #: whether a folder holds an earlier rendering and nothing else (it is then replaced whole): its
 #: rendering.json says so (a folder of crops and labels.csv may be a user's own)
-_is_rendering = outputs_of("rendering.json", RENDERING, ("poses", "seed"))
+_is_rendering = outputs_of("rendering.json", RENDERING, ("poses", "seed"),
+                           inside={"crops": r"\d{6,}\.png", "frames": r"\d{6,}\.jpg"})
 
 
 def _write_dataset(out: Path, n: int, seed: int, dark: bool, frames: bool, progress: bool, motion: str,

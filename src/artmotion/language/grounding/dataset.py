@@ -172,7 +172,9 @@ DATASET = frozenset({"images", "speech", "index.csv", MARKER})
 #: an earlier dataset of this command, and nothing else: it is then replaced whole. The marker is
 #: what tells it from a dataset of the user's own recordings in the same layout (images/, speech/,
 #: index.csv: what ``grounding eval`` reads), which is never replaced
-_is_dataset = outputs_of(MARKER, DATASET, ("seed", "examples"))
+_is_dataset = outputs_of(MARKER, DATASET, ("seed", "examples"),
+                         inside={"images": rf"\d{{3,}}_({'|'.join(COLORS)})_({'|'.join(SHAPES)})\.png",
+                                 "speech": r"\d{3,}_(full|color|shape)\.wav"})
 
 
 def make_dataset(out: str | os.PathLike, seed: int = 0, table: dict | None = None) -> Path:

@@ -520,6 +520,27 @@ def test_a_file_of_the_users_inside_an_earlier_outputs_subfolder_keeps_the_folde
     assert not test(tmp_path / "t")
 
 
+def test_an_output_named_by_a_link_into_no_folder_is_refused_before_anything_is_made(tmp_path):
+    """A file output named by a link to a file whose folder did not exist made that folder (and
+    its parents) wherever the link pointed; a link to a new file in a folder that exists is still
+    written through."""
+    from artmotion.io.atomic import check_writable
+
+    link = tmp_path / "dangling.csv"
+    link.symlink_to(tmp_path / "nowhere" / "deeper" / "x.csv")
+    with pytest.raises(InputError, match="dangling.csv: is a link to .*x.csv, in a folder that does not exist"):
+        check_writable(link)
+    with pytest.raises(InputError, match="in a folder that does not exist"):
+        with atomic_write(link) as fh:
+            fh.write("x\n")
+    assert not (tmp_path / "nowhere").exists()
+    fresh = tmp_path / "fresh.csv"
+    fresh.symlink_to(tmp_path / "new.csv")
+    with atomic_write(fresh) as fh:
+        fh.write("x\n")
+    assert fresh.is_symlink() and (tmp_path / "new.csv").read_text() == "x\n"
+
+
 def test_an_output_named_by_a_link_is_written_through_it(tmp_path):
     """The atomic rename put a plain file in place of a link named as the output: a link to a
     file lost its target's update, and ``--out /dev/stdout`` with stdout redirected replaced the

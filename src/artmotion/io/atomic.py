@@ -58,14 +58,17 @@ def _through_link(path: Path) -> Path:
     of the process, a device) is refused: its target is no file to replace."""
     if not path.is_symlink():
         return path
+    target = Path(os.path.realpath(path))
+    named = os.readlink(path)
     try:
         os.stat(path)
-    except OSError as exc:      # (a link to no file is written through: its target is made)
+    except OSError as exc:      # (a link to no file is written through: its target is made ...
         if exc.errno == errno.ELOOP:
             raise InputError("is a link that loops (to itself, through other links): give the name of a file to "
                              "write", path=path) from None
-    target = Path(os.path.realpath(path))
-    named = os.readlink(path)
+        if not target.parent.is_dir():  # ... in a folder that exists: none is made where a link points
+            raise InputError(f"is a link to {named}, in a folder that does not exist: give the name of a file to "
+                             "write", path=path) from None
     if (target.parts[:2] == ("/", "proc") or named.startswith(("/proc/", "/dev/fd/"))
             or named in ("/dev/stdin", "/dev/stdout", "/dev/stderr")):
         raise InputError("is a link to a stream of the process (/dev/stdout and the like): give the name of "

@@ -194,6 +194,16 @@ def test_default_model_pca_exact_roundtrip(split, tmp_path):
     np.savez(tmp_path / "old.npz", **d)
     old = PoseRegressor.load(tmp_path / "old.npz")
     assert np.all(old.smooth_std_ == 1) and np.all(old.filter_std_ == 1)
+    # angle names whose predictions' header repeats a column ('image'; 'yaw' beside 'yaw_std'): the
+    # file predict wrote could not be read back; refused on load as train refuses such labels
+    k = len(names)
+    for clash in (["image", *names[1:]], ["yaw_std", "yaw", *[f"a{i}" for i in range(k - 2)]]):
+        d["names"] = np.array(clash)
+        np.savez(tmp_path / "clash.npz", **d)
+        with pytest.raises(InputError, match="clash.npz: corrupt artmotion pose model: angle names .* put column"):
+            PoseRegressor.load(tmp_path / "clash.npz")
+        with pytest.raises(InputError, match="twice in the predictions' header"):
+            PoseRegressor(n_components=4).fit(imgs[:20], Y[:20], clash)
 
 
 def _one_line(code, err, needle):

@@ -22,7 +22,7 @@ from artmotion.errors import InputError, check_bool, check_range, check_seed, fl
 from artmotion.io import atomic_path
 from artmotion.io.files import as_path, read_head
 from artmotion.pose import features as F
-from artmotion.pose.data import MAX_KEYPOINT
+from artmotion.pose.data import MAX_KEYPOINT, prediction_header
 from artmotion.pose.filter import PoseFilter, accel_variance, tune_filter
 from artmotion.pose.gp import ExactGP, Hyper, SparseGP, fit_gp
 
@@ -731,6 +731,11 @@ def _angle_names(names, k: int) -> list[str]:
         raise InputError(f"{len(names)} angle names for {k} label columns")
     if not all(isinstance(n, str) and n for n in names) or len(set(names)) != k:
         raise InputError(f"angle names must be distinct, non-empty strings, got {names!r}")
+    out = prediction_header(names)
+    twice = [c for i, c in enumerate(out) if c in out[:i]]
+    if twice:   # e.g. 'yaw' and 'yaw_std', or 'image': predictions could not be read back
+        raise InputError(f"angle names {names!r} put column {twice[0]!r} twice in the predictions' header "
+                         "(image,<angle>,<angle>_std,...)")
     return names
 
 
@@ -780,8 +785,9 @@ def _model_from_arrays(cls, d: dict) -> PoseRegressor:
         raise InputError(f"unknown GP method {method!r}")
     names = [str(s) for s in _array(d, "names", (None,), "U")]
     k = len(names)
-    if not k or len(set(names)) != k or not all(names):
-        raise InputError("angle names are not a list of distinct, non-empty names")
+    if not k:
+        raise InputError("no angle names")
+    _angle_names(names, k)
     X = _array(d, "X", (None, None))
     n, dim = X.shape
     if n < 1 or dim < 1:

@@ -274,9 +274,37 @@ def test_cli_describe_bad_input(tmp_path, run_cli):
     assert code == 2 and "dup.txt" in err and "id 1 appears more than once in frame 1" in err
 
 
+
+def test_cli_describe_refuses_what_it_would_guess(tmp_path, run_cli):
+    """Inputs that contradict themselves or name what is not there were taken without a word: an
+    events line with a key twice (the last value won), a track given two classes (the last won),
+    a class for a track the results do not hold (ignored), the image column or a std column as the
+    opening angle (read as NaN, or a std read as an angle), detections (id -1) told as person -1."""
+    res = tmp_path / "r.txt"
+    write_mot(res, scene())
+    ev = tmp_path / "ev.jsonl"
+    ev.write_text('{"type": "enter", "frame": 12, "tracks": [1], "side": "left", "frame": 13}\n')
+    pose = tmp_path / "PRED.csv"
+    pose.write_text("image,opening,opening_std\n" + "".join(f"{k:06d}.png,{10 * k},1\n" for k in range(1, 21)))
+    dets = tmp_path / "det.txt"
+    dets.write_text("".join(f"{f},-1,{10 + f},10,20,40,0.9,-1,-1,-1\n" for f in range(1, 11)))
+    for args, needle in (((res, "--events", ev), "ev.jsonl:1: not JSON: key 'frame' given twice in one object"),
+                         ((res, "--class", "1=tool", "--class", "1=car"), "track 1 was given the class 'tool' already"),
+                         ((res, "--class", "tool", "--class", "car"), "every track was given the class 'tool' already"),
+                         ((res, "--class", "999=tool"), "--class 999=tool: no such track in the results"),
+                         ((res, "--pose", pose, "--pose-column", "image"), "PRED.csv:1: not an angle column: 'image'"),
+                         ((res, "--pose", pose, "--pose-column", "opening_std"), "not an angle column: 'opening_std'"),
+                         ((dets,), "det.txt: id -1 on 10 rows: MOTChallenge's 'no identity'")):
+        code, out, err = run_cli("describe", *args)
+        assert code == 2 and needle in err and err.count("\n") == 1, (args, err)
+    code, out, err = run_cli("describe", res, "--class", "1=tool", "--class", "1=tool", "--class", "cart")
+    assert code == 0 and "Tool 1" in out, err
+
+
 def test_parse_classes():
     assert parse_classes(["tool", "2=cart"]) == ("tool", {2: "cart"})
-    for bad in (["x=cart"], [""], ["car1"], ["2=car1"]):  # a bare name is checked like ID=NAME's
+    assert parse_classes(["tool", "2=cart", "tool", "2=cart"]) == ("tool", {2: "cart"})
+    for bad in (["x=cart"], [""], ["car1"], ["2=car1"], ["2=a=b"]):  # a bare name is checked like ID=NAME's
         with pytest.raises(InputError, match="expected NAME or ID=NAME"):
             parse_classes(bad)
 

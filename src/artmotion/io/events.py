@@ -130,6 +130,17 @@ def event_problem(ev) -> str | None:
     return None
 
 
+def _no_repeated_key(pairs: list[tuple[str, object]]) -> dict:
+    """A JSON object's pairs as a dict; a key given twice is a ValueError (JSON's parsers keep the
+    last value, and which of the two the writer meant is not known)."""
+    out: dict = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"key {k!r} given twice in one object")
+        out[k] = v
+    return out
+
+
 def read_events(path: str | os.PathLike) -> list[dict]:
     """Read and validate an events file; raise :class:`InputError` naming file and line. An event
     repeated (the same object on two lines) is an error, as a repeated row of a results file is:
@@ -141,7 +152,7 @@ def read_events(path: str | os.PathLike) -> list[dict]:
         if not line.strip():
             continue
         try:
-            ev = json.loads(line, parse_constant=_not_json_constant)
+            ev = json.loads(line, parse_constant=_not_json_constant, object_pairs_hook=_no_repeated_key)
         except json.JSONDecodeError as exc:
             raise InputError(f"not JSON: {exc.msg}", path=path, line=lineno) from None
         except (ValueError, RecursionError) as exc:

@@ -67,6 +67,10 @@ def describe_cmd(
                    "with consider = 1)", err=True)
         rows = people
     check_ids(rows, "results", results)   # one box per track and frame (a second would be dropped unsaid)
+    if len(rows) and (rows[:, 1] == -1).any():
+        raise InputError(f"id -1 on {int((rows[:, 1] == -1).sum())} rows: MOTChallenge's 'no identity' (detections, "
+                         "not tracks): track them first (artmotion track)", path=results)
+    classes = parse_classes(cls)
     evs = read_events(events) if events is not None else None
     pose_seq = None
     if pose is not None:
@@ -88,6 +92,9 @@ def describe_cmd(
                                  path=events)
         if pose_track is not None and pose_track not in ids:
             raise InputError(f"--pose-track {pose_track}: no such track in the results", path=results)
+        for k, name in classes[1].items():
+            if k not in ids:
+                raise InputError(f"--class {k}={name}: no such track in the results", path=results)
         first = int(rows[:, 0].min())
         if pose_seq is not None and (pose_seq[0].min() < first or pose_seq[0].max() > last):
             raise InputError(f"pose frames {pose_seq[0].min()}-{pose_seq[0].max()} are not within the results' "
@@ -96,7 +103,7 @@ def describe_cmd(
     if image_size is not None:
         check_image_size(rows, image_size, path=results)
     triplets = describe(
-        rows, evs, pose=pose_seq, classes=parse_classes(cls), pose_subject=pose_subject,
+        rows, evs, pose=pose_seq, classes=classes, pose_subject=pose_subject,
         pose_track=pose_track, open_above=open_above, close_below=close_below,
         image_size=image_size, fps=fps,
     )

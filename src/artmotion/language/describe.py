@@ -77,17 +77,23 @@ class DescribeParams:
 def parse_classes(specs: list[str] | None, default: str = "person") -> tuple[str, dict[int, str]]:
     """``["person", "3=cart"]`` -> ``("person", {3: "cart"})``; a bare name sets the default."""
     per_track: dict[int, str] = {}
+    bare: str | None = None
     for spec in specs or []:
         spec = spec.strip()
+        tid, _, name = spec.rpartition("=")
         try:
-            if "=" in spec:
-                tid, _, name = spec.partition("=")
-                per_track[int(tid)] = _class_word(name)
-            else:
-                default = _class_word(spec)
+            k, word = (int(tid), _class_word(name)) if "=" in spec else (None, _class_word(spec))
         except ValueError:
             raise InputError(f"--class {spec!r}: expected NAME or ID=NAME (a name of letters, spaces "
                              "and hyphens)") from None
+        earlier = bare if k is None else per_track.get(k)
+        if earlier not in (None, word):     # (which of the two was meant is not known)
+            raise InputError(f"--class {spec!r}: {'every track' if k is None else f'track {k}'} was given the "
+                             f"class {earlier!r} already")
+        if k is None:
+            default = bare = word
+        else:
+            per_track[k] = word
     return default, per_track
 
 
@@ -435,8 +441,9 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
             raise InputError(f"no opening-angle column (name containing 'open') among {angles}; use --pose-column",
                              path=path, line=1)
         column = cands[0]
-    elif column not in header:
-        raise InputError(f"no column {column!r} (columns: {', '.join(header)})", path=path, line=1)
+    elif column not in angles:
+        what = "no column" if column not in header else "not an angle column:"
+        raise InputError(f"{what} {column!r} (angle columns: {', '.join(angles) or 'none'})", path=path, line=1)
     ci, ii = header.index(column), header.index("image")
     names, values = [], []
     seen: dict[str, int] = {}

@@ -60,6 +60,7 @@ def test_read_keypoints_checks_its_file(tmp_path):
         "image,a_x,a_y\n000001.png,1,2\n000002.png,1,2\n000001.jpg,1,2\n": "keypoints.csv:4: a second row of keypoints",
         "image,a_x,a_y\n000001.png,1,nan\n000002.png,1,2\n": "keypoints.csv:2: a_y",
         "image,a_x,a_y\n000001.png,1,2\n000002.png,1\n": "keypoints.csv:3: expected 3 values",
+        "image,a_x,a_y\n000001.png,,\n000002.png,,\n": "keypoints.csv: no keypoint is known in any row",
         "image,a_x,a_y\n000001.png,1,2\n000002.png,9999,2\n":   # 250 widths of its 40-px crop: frame pixels?
             "keypoints.csv: the keypoints of image '000002.png' lie more than 100 crop widths",
     }

@@ -231,6 +231,8 @@ def read_keypoints(path: str | os.PathLike, images: Sequence[Path],
     points = _per_image(path, rows, point_row, images, "row of keypoints")
     K = np.array(points, dtype=float).reshape(len(images), len(pairs))
     K /= np.tile(np.asarray(sizes, dtype=float), len(names))
+    if np.isnan(K).all():   # (an empty file's header and image names: nothing to learn, said as learnt)
+        raise InputError("no keypoint is known in any row (every x and y is empty)", path=path)
     far = np.flatnonzero(np.nanmax(np.abs(K), axis=1, initial=0.0) > MAX_KEYPOINT)
     if len(far):
         raise InputError(f"the keypoints of image {images[far[0]].name!r} lie more than {MAX_KEYPOINT:g} crop widths or "

@@ -328,6 +328,24 @@ def test_run_says_why_ground_truth_gave_no_metrics(tmp_path, run_cli, sample_seq
     assert code == 0 and "metrics:" in out and "no metrics" not in err
 
 
+def test_run_refuses_ground_truth_of_frames_the_sequence_has_not(tmp_path, run_cli, sample_seq):
+    """A gt.txt row of frame 500 in a 4-frame sequence was scored as a missed box (the metrics
+    moved without a word), where the same row in det.txt is refused: refused too, before the work
+    for a folder of images, once the video is read for a video; no run folder is left."""
+    seq = small_sequence(sample_seq, tmp_path / "seq", n=4)
+    with open(seq / "gt" / "gt.txt", "a") as fh:
+        fh.write("500,1,10,10,20,40,1,-1,-1,-1\n")
+    video = tmp_path / "video"
+    shutil.copytree(sample_seq, video)
+    with open(video / "gt" / "gt.txt", "a") as fh:
+        fh.write("500,1,10,10,20,40,1,-1,-1,-1\n")
+    for src, frames in ((seq, 4), (video, 71)):
+        code, out, err = run_cli("run", src, "--out", tmp_path / "r", "--no-video")
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"gt.txt: ground truth for frame 500 but the sequence has {frames} frames" in err
+        assert not (tmp_path / "r").exists()
+
+
 def test_a_detection_reaching_far_beyond_the_image_is_described(tmp_path):
     """A valid box whose centre lies far left of the image (it still overlaps it) made run fail
     after all its work: describe's check that a given image size fits the boxes ("is the image

@@ -228,6 +228,8 @@ def run_pipeline(
 
         check_ids(gt, "ground truth", seq.gt_path)  # before the tracking, naming the file
         rules = check_rules(gt, rules, columns_of(seq.gt_path), seq.gt_path)
+        if seq.images is not None:      # (a video's length is known once it is read: _run_into)
+            _check_gt_frames(gt, seq.length, seq.gt_path)
     fingerprint = source_fingerprint(seq)
     inputs = input_digest(seq, det)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
@@ -262,6 +264,14 @@ RUN_FILES = frozenset({MANIFEST, "results.txt", "events.jsonl", "sentences.txt",
 _is_run = outputs_of(MANIFEST, RUN_FILES, ("files", "sentences"))
 
 
+def _check_gt_frames(gt: np.ndarray, frames: int, path) -> None:
+    """Ground truth of frames the sequence has, else an :class:`InputError` naming its file (boxes
+    of a frame beyond the sequence were scored as missed: the metrics moved without a word; the
+    detections are checked alike)."""
+    if len(gt) and gt[:, 0].max() > frames:
+        raise InputError(f"ground truth for frame {int(gt[:, 0].max())} but the sequence has {frames} frames", path=path)
+
+
 def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_class: str, experts,
               progress: bool, video: bool, pose, gt, rules: str = "auto") -> tuple[dict, np.ndarray]:
     """Track, describe, score and report ``seq`` into the folder ``out``; return the manifest (not
@@ -288,6 +298,7 @@ def _run_into(out: Path, seq, source, fingerprint: str, detection: dict, object_
     sentences = describe_run(tracks, events, seq.width, seq.height, seq.fps, object_class=object_class, poses=poses)
     metrics = None
     if gt is not None and len(gt):
+        _check_gt_frames(gt, result.frames, seq.gt_path)
         scores = evaluate(gt, tracks, rules=rules)
         # ground truth whose boxes are all ignored (distractors, conf 0) is no ground truth
         metrics = {k: float(v) for k, v in scores.items()} if scores["GT_DETS"] else None

@@ -305,6 +305,41 @@ def test_index_add_refuses_a_run_whose_files_changed(tmp_path, run_cli, change):
     assert sorted(manifest["sha256"]) == ["events.jsonl", "results.txt", "sentences.txt"]
 
 
+def test_index_add_refuses_a_manifest_edited_or_malformed_since_the_run(tmp_path, run_cli):
+    """The index takes a run's sentences, events and tracks from run.json; only the files had
+    digests, so a sentence edited in run.json alone was indexed (and found by search), as were a
+    NaN token, a key given twice, a sentence of two lines and a manifest whose digests were
+    emptied beside a changed sentences.txt."""
+    res = run_pipeline(small_sequence(tmp_path / "a"), tmp_path / "run", video=False)
+    path = res.out_dir / "run.json"
+    good = path.read_text()
+    manifest = json.loads(good)
+    assert manifest["sentences"] and manifest["track_summary"]
+    sentence = manifest["sentences"][0]["sentence"]
+
+    def edited(change):
+        m = json.loads(good)
+        change(m)
+        return json.dumps(m)
+
+    cases = {
+        "changed since the run: run.json": edited(lambda m: m["sentences"][0].update(sentence="Person 9 flies.")),
+        "changed since the run: run.json ": edited(lambda m: m["track_summary"][0].update(boxes=1)),
+        "corrupt manifest: NaN is not a number JSON allows": good.replace('"tracking_fps": ', '"tracking_fps": NaN, "x": '),
+        "corrupt manifest: key 'name' given twice": good.replace('"name": ', '"name": "other", "name": ', 1),
+        "one line of text": edited(lambda m: m["sentences"][0].update(sentence=sentence + "\nPerson 9 flies.")),
+        "'sha256' is not an object of the SHA-256 digests": edited(lambda m: m.update(sha256={})),
+        "'tracking_fps' is not a finite number": good.replace('"tracking_fps": ', '"tracking_fps": 1e999, "x": '),
+    }
+    for needle, text in cases.items():
+        path.write_text(text)
+        code, _, err = run_cli("index", "add", res.out_dir, "--db", tmp_path / "idx.sqlite")
+        assert code == 2 and needle.strip() in err and err.count("\n") == 1, (needle, err)
+        assert not (tmp_path / "idx.sqlite").exists()
+    path.write_text(good)
+    assert run_cli("index", "add", res.out_dir, "--db", tmp_path / "idx.sqlite")[0] == 0
+
+
 def test_is_finished_says_no_when_the_detections_cannot_be_read(tmp_path, monkeypatch):
     """The digest of the inputs was read outside the check that turns an unreadable input into
     "not finished": an OSError escaped and stopped the whole batch's planning."""

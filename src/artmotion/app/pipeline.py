@@ -31,8 +31,8 @@ from artmotion import __version__
 from artmotion.errors import InputError, check_bool
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
 from artmotion.io.atomic import check_out_dir, outputs_of
-from artmotion.io.events import event_problem
-from artmotion.io.files import as_path
+from artmotion.io.events import event_problem, read_events
+from artmotion.io.files import as_path, strict_json
 from artmotion.io.media import MAX_FPS, MIN_FPS, cv2_name
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 from artmotion.tracking.config import DETECT_EVERY
@@ -386,6 +386,13 @@ def check_run_files(run_dir: str | os.PathLike, run: dict) -> None:
         if not same:
             raise InputError(f"changed since the run: {name}{'' if path.exists() else ' (missing)'}; run it again",
                              path=run_dir)
+    if run.get("sha256"):   # the files are the run's: the manifest's copy of what they hold must be too
+        told = [s["sentence"] for s in run["sentences"]]
+        if (Path(run_dir) / "sentences.txt").read_text(encoding="utf-8").splitlines() != told \
+                or read_events(Path(run_dir) / "events.jsonl") != run["events"] \
+                or track_summary(read_mot(Path(run_dir) / "results.txt")) != run["track_summary"]:
+            raise InputError(f"changed since the run: {MANIFEST} (its tracks, events or sentences are not its "
+                             "files'); run it again", path=run_dir)
 
 
 def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = None, run: dict | None = None) -> bool:
@@ -435,8 +442,8 @@ def load_run(run_dir: str | os.PathLike) -> dict:
     if not path.is_file():
         raise InputError(f"not a finished artmotion run (no {MANIFEST})", path=run_dir)
     try:
-        run = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        run = strict_json(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:    # (NaN, a key twice: strict_json)
         raise InputError(f"corrupt manifest: {exc}", path=path) from None
     except RecursionError:
         raise InputError("corrupt manifest: nested too deeply", path=path) from None
@@ -484,9 +491,12 @@ def _manifest_problem(run) -> str | None:
     if "source" in run and not run["source"]:    # (older manifests have none; no run writes it empty or null)
         return "'source' is empty"
     digests = run.get("sha256")
-    if digests is not None and not (isinstance(digests, dict) and all(
-            name in CHECKED_FILES and isinstance(d, str) and len(d) == 64 for name, d in digests.items())):
-        return f"'sha256' is not an object of SHA-256 digests of {', '.join(CHECKED_FILES)}"
+    if digests is not None and not (isinstance(digests, dict) and sorted(digests) == sorted(CHECKED_FILES) and all(
+            isinstance(d, str) and len(d) == 64 for d in digests.values())):
+        return f"'sha256' is not an object of the SHA-256 digests of {', '.join(CHECKED_FILES)}"
+    for key in ("tracking_fps", "seconds"):
+        if run.get(key) is not None and not _is_number(run[key], 0.0, 1e300):
+            return f"{key!r} is not a finite number >= 0"
     seq = run.get("sequence", {})
     counts = {"length": (1, MAX_FRAME), "width": (1, int(MAX_COORD)), "height": (1, int(MAX_COORD)), "bits": (1, 16)}
     if not isinstance(seq, dict) or any(seq.get(k) is not None and not _is_int(seq[k], *r) for k, r in counts.items()) \
@@ -504,11 +514,12 @@ def _manifest_problem(run) -> str | None:
         if problem is not None:
             return f"'events' item {k + 1}: {problem}"
     if not isinstance(run["sentences"], list) or not all(
-            isinstance(x, dict) and isinstance(x.get("sentence"), str) and _int_list(x.get("tracks", []))
+            isinstance(x, dict) and isinstance(x.get("sentence"), str) and len(x["sentence"].splitlines()) == 1
+            and _int_list(x.get("tracks", []))
             and all(x.get(k) is None or _is_frame(x.get(k)) for k in ("frame_start", "frame_end"))
             and all(x.get(k) is None or isinstance(x.get(k), str) for k in ("subject", "verb", "adjective"))
             for x in run["sentences"]):
-        return "'sentences' is not a list of sentences (text, track ids, integer frames; in range)"
+        return "'sentences' is not a list of sentences (one line of text, track ids, integer frames; in range)"
     metrics = run.get("metrics")
     if metrics is not None and not (isinstance(metrics, dict) and all(
             _is_number(v, -1e300, 1e300) for v in metrics.values())):

@@ -22,7 +22,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.io.atomic import atomic_write
-from artmotion.io.files import read_text
+from artmotion.io.files import read_text, strict_json
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 
 REQUIRED = ("type", "frame", "tracks")
@@ -44,10 +44,6 @@ def _coordinate(v) -> bool:
     if isinstance(v, int):
         return abs(v) <= MAX_COORD                        # (a whole number of any size)
     return isinstance(v, (float, np.integer, np.floating)) and abs(float(v)) <= MAX_COORD
-
-
-def _not_json_constant(name: str):
-    raise ValueError(f"{name} is not a number JSON allows")
 
 
 def _infinite(value, where: str) -> str | None:
@@ -130,17 +126,6 @@ def event_problem(ev) -> str | None:
     return None
 
 
-def _no_repeated_key(pairs: list[tuple[str, object]]) -> dict:
-    """A JSON object's pairs as a dict; a key given twice is a ValueError (JSON's parsers keep the
-    last value, and which of the two the writer meant is not known)."""
-    out: dict = {}
-    for k, v in pairs:
-        if k in out:
-            raise ValueError(f"key {k!r} given twice in one object")
-        out[k] = v
-    return out
-
-
 def read_events(path: str | os.PathLike) -> list[dict]:
     """Read and validate an events file; raise :class:`InputError` naming file and line. An event
     repeated (the same object on two lines) is an error, as a repeated row of a results file is:
@@ -152,7 +137,7 @@ def read_events(path: str | os.PathLike) -> list[dict]:
         if not line.strip():
             continue
         try:
-            ev = json.loads(line, parse_constant=_not_json_constant, object_pairs_hook=_no_repeated_key)
+            ev = strict_json(line)
         except json.JSONDecodeError as exc:
             raise InputError(f"not JSON: {exc.msg}", path=path, line=lineno) from None
         except (ValueError, RecursionError) as exc:

@@ -3,6 +3,7 @@ a device or a pipe would be read forever), and a read that fails names the file.
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -68,6 +69,27 @@ def check_riff_size(path: str | os.PathLike, head: bytes) -> None:
     size = Path(path).stat().st_size
     if size < declared:
         raise InputError(f"truncated: {size} of the {declared} bytes its header declares", path=path)
+
+
+def _not_json_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _no_repeated_key(pairs: list[tuple[str, object]]) -> dict:
+    out: dict = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"key {k!r} given twice in one object")
+        out[k] = v
+    return out
+
+
+def strict_json(text: str):
+    """``json.loads`` of what JSON allows: ``NaN`` and ``Infinity`` (Python's extensions) and a key
+    given twice in one object (the parser keeps the last value; which was meant is not known) are
+    a ValueError (``json.JSONDecodeError`` for other malformed text; RecursionError when nested
+    too deeply)."""
+    return json.loads(text, parse_constant=_not_json_constant, object_pairs_hook=_no_repeated_key)
 
 
 def read_text(path: str | os.PathLike, what: str) -> str:

@@ -16,7 +16,8 @@ object's box with it: nothing after tracking depends on which way is up, so a di
 the pipeline's fragility to its tracks) and the part search's random seed (five seeds in each
 orientation).
 Synthetic parts (turning about an axis towards the camera or about a hinge in the image plane,
-a small part turning about a far point, sliding across the image or towards the camera, still;
+a small part turning about a far point, a ball spinning about its axis, sliding across the image or
+towards the camera, still;
 some with an exposure step half-way; 5 seeds each, alone and with a hand passing over the part)
 are scored too.
 Writes the tables into docs/articulation_video.md between ``<!-- video-benchmark -->`` markers.
@@ -57,6 +58,7 @@ SYNTHETIC = [("revolute", {}, "revolute", "turning about an axis towards the cam
              ("depth", {}, "prismatic", "pulled towards the camera by 0.3 of its distance (pinhole)"),
              ("static", {}, "static", "not moving"),
              ("swing", {}, "revolute", "a 60×40 px part turning 25° about a point 200 px away (a handle's tip)"),
+             ("globe", {}, "revolute", "a ball spinning 90° about its leaning axis (a part that is not flat)"),
              ("depth", {"pivot": (40.0, 40.0)}, "prismatic", "pulled towards the camera, off the image centre"),
              ("revolute", {"exposure": True}, "revolute", "turning 60°, an exposure step half-way"),
              ("prismatic", {"exposure": True}, "prismatic", "sliding 80 px, an exposure step half-way"),

@@ -120,6 +120,40 @@ def synthetic_log(kind: str, seed: int | np.random.Generator = 0) -> tuple[np.nd
     return P @ _frame(rng).T + rng.uniform(-1.0, 1.0, 3), KINDS[kind]
 
 
+def _globe(texture: np.ndarray, size: tuple[int, int], centre, amount: float, radius: float = 70.0):
+    """``part_video``'s ball: a function of the motion ``q`` (0..1) giving the image of ``texture``
+    wrapped round a ball (longitude across, latitude down) turned by ``amount * q`` degrees about
+    its leaning axis, and the ball's mask."""
+    import cv2
+
+    from artmotion.geometry.rotations import axis_angle_to_matrix as turn
+
+    w, h = size
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    x, y = (u - centre[0]) / radius, (v - centre[1]) / radius
+    inside = x * x + y * y < 1.0
+    z = np.sqrt(np.clip(1.0 - x * x - y * y, 0.0, 1.0))                  # towards the camera
+    P = np.stack([x, y, -z], -1)                                          # camera frame (z away from it)
+    up = turn([0, 0, 1], np.radians(23.0)) @ turn([1, 0, 0], np.radians(20.0)) @ [0.0, 1.0, 0.0]
+    side = np.cross(up, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    body = np.stack([side, up, np.cross(side, up)])                       # the ball's axes, as rows
+    texture = np.hstack([texture, texture[:, ::-1]])                     # mirrored: no seam where it closes
+    th, tw = texture.shape[:2]
+    shade = (0.45 + 0.55 * z)[..., None]                                  # lit from the camera
+
+    def image(q: float) -> tuple[np.ndarray, np.ndarray]:
+        B = P @ (body @ turn(up, -np.radians(amount * q))).T             # the turn undone: body coordinates
+        lon = np.arctan2(B[..., 0], B[..., 2])
+        lat = np.arcsin(np.clip(B[..., 1], -1.0, 1.0))
+        mx = ((lon + np.pi) / (2.0 * np.pi) * tw).astype(np.float32)
+        my = ((lat + np.pi / 2.0) / np.pi * (th - 1)).astype(np.float32)
+        img = cv2.remap(texture, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        return np.clip(img * shade, 0, 255).astype(np.uint8), inside
+
+    return image
+
+
 def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int, int] = (320, 240),
                amount: float | None = None, pivot: tuple[float, float] = (110.0, 120.0),
                direction: tuple[float, float] = (1.0, 0.3), seed: int = 0, fps: float = 30.0,
@@ -138,13 +172,16 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     about a point 200 px to its left, as the markers at the tip of a long handle (pliers): its
     points' paths are nearly straight, its turn is what says revolute. ``exposure``: the camera's
     automatic exposure steps once, half-way through the motion (every grey level x 0.75 + 10 from
-    then on)."""
+    then on). ``globe``: a textured ball (radius 70 px, centred at ``pivot``, lit from the camera,
+    seen under weak perspective) spins by ``amount`` degrees (default 90) about its axis, which
+    leans from the image's vertical by 23° sideways and 20° towards the camera: a rigid part that
+    is not flat, whose points pass behind it."""
     import cv2
 
     from artmotion.io.atomic import atomic_path
     from artmotion.io.media import cv2_name
 
-    if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing"):
+    if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing", "globe"):
         raise ValueError(f"unknown motion {motion!r}")
     rng = np.random.default_rng(seed)
     w, h = size
@@ -170,7 +207,8 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
         cv2.rectangle(mask, (int(px), int(py - 20)), (int(px + 60), int(py + 20)), 255, -1)
     else:
         cv2.rectangle(mask, (int(px), int(py - 22)), (int(px + 130), int(py + 22)), 255, -1)
-    amount = {"revolute": 60.0, "hinge": 60.0, "depth": 0.3, "swing": 25.0}.get(motion, 80.0) if amount is None else amount
+    amount = ({"revolute": 60.0, "hinge": 60.0, "depth": 0.3, "swing": 25.0, "globe": 90.0}.get(motion, 80.0)
+              if amount is None else amount)
     d = np.asarray(direction, float) / np.linalg.norm(direction)
     focal = w / (2.0 * np.tan(np.radians(30.0)))
     centre = np.array([w / 2.0, h / 2.0])
@@ -188,13 +226,17 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
             X[:, 2] -= amount * q * depth
         return (X[:, :2] / X[:, 2:] * focal + centre).astype(np.float32)
 
+    if motion == "globe":
+        globe = _globe(part, (w, h), pivot, amount)
     rest = frames // 6
     with atomic_path(path) as tmp:
         out = cv2.VideoWriter(cv2_name(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
         for f in range(frames):
             q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
             q = 0.5 - 0.5 * np.cos(np.pi * q)
-            if pinhole:
+            if motion == "globe":
+                p, m = globe(q)
+            elif pinhole:
                 H = cv2.getPerspectiveTransform(corners, seen(q))
                 p = cv2.warpPerspective(part, H, (w, h))
                 m = cv2.warpPerspective(mask, H, (w, h)) > 127

@@ -69,6 +69,21 @@ def test_names_that_are_not_text_are_refused_before_the_work(tmp_path, run_cli, 
     assert code == 2 and "--video" in err and "damaged" not in err and err.count("\n") == 1, err
 
 
+def test_a_run_folder_whose_name_is_not_text_is_named_not_the_index(tmp_path, run_cli):
+    """index add of a run folder whose name is not UTF-8 called a healthy index damaged ("build a
+    new one"), and a new one that was never made; now the folder is named, the index untouched."""
+    good = _run(tmp_path / "good")
+    db = tmp_path / "i.sqlite"
+    assert run_cli("index", "add", good, "--db", db)[0] == 0
+    before = db.read_bytes()
+    odd = tmp_path / ODD
+    shutil.copytree(good, odd)
+    for index in (db, tmp_path / "new.sqlite"):
+        code, _, err = run_cli("index", "add", odd, "--db", index)
+        assert code == 2 and "not UTF-8" in err and "rename the folder" in err and "damaged" not in err, err
+    assert db.read_bytes() == before and not (tmp_path / "new.sqlite").exists()
+
+
 @pytest.mark.parametrize("what", ["video", "out", "annotated"])
 def test_opencv_is_never_given_a_name_that_is_not_text(tmp_path, run_cli, monkeypatch, sample_seq, what):
     """OpenCV kills the process (a segmentation fault) on such a name, for reading or writing."""

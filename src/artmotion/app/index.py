@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from artmotion.errors import InputError, check_bool
-from artmotion.io.files import as_path, read_head
+from artmotion.io.files import as_path, check_text, read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
 APPLICATION_ID = 0x41524D54
@@ -240,6 +240,8 @@ class EventIndex:
                 raise InputError(f"runs item {k + 1}: must be (run folder, manifest as load_run returns it), "
                                  f"got {type(item).__name__}")
             run_dir, run = item
+            # (the folder is kept as text: a name of other bytes called the index damaged)
+            check_text(os.path.abspath(run_dir), fix="rename the folder")
             check_manifest(run, Path(run_dir) / MANIFEST)   # (a dict given from Python, not read by load_run)
             check_run_files(run_dir, run)       # the files the manifest describes, as the run left them
         added = []

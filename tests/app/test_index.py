@@ -227,9 +227,17 @@ def test_run_refuses_an_index_inside_its_run_folder(tmp_path, run_cli, sample_se
     """``make demo`` put its index in the run folder: the next run into that folder was refused (a
     folder holding more than a run is not replaced). The index belongs next to the folder."""
     code, _, err = run_cli("run", sample_seq, "--out", tmp_path / "run", "--index", tmp_path / "run" / "i.sqlite")
-    assert code == 2 and err.strip().endswith("i.sqlite: is inside the run folder --out: keep the index outside it "
-                                              "(next to it)"), err
+    assert code == 2 and err.strip().endswith("i.sqlite: is the run folder --out or inside it: keep the index "
+                                              "outside it (next to it)"), err
     assert list(tmp_path.iterdir()) == []
+    # the run folder itself as the index (failed after the whole run), or an index among the input's frames
+    code, _, err = run_cli("run", sample_seq, "--out", tmp_path / "run", "--index", tmp_path / "run")
+    assert code == 2 and "run: is the run folder --out or inside it" in err, err
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    code, _, err = run_cli("run", frames, "--out", tmp_path / "run", "--index", frames / "i.sqlite")
+    assert code == 2 and "i.sqlite: is inside the input folder" in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == [frames] and list(frames.iterdir()) == []
 
 
 @pytest.mark.parametrize("change", ["UPDATE sentences SET tracks = '[1e400]'", "UPDATE sentences SET tracks = '[1.5]'",

@@ -112,9 +112,14 @@ def run_cmd(
 
         for path in (source.resolve(), *(() if out is None else (out.resolve(),))):
             check_text(path)
-    if db is not None and out is not None and Path(os.path.realpath(out)) in Path(os.path.realpath(db)).parents:
+    if db is not None and out is not None and Path(os.path.realpath(out)) in (Path(os.path.realpath(db)),
+                                                                             *Path(os.path.realpath(db)).parents):
         # the next run into --out replaces the folder whole, or refuses a folder holding other files
-        raise InputError("is inside the run folder --out: keep the index outside it (next to it)", path=db)
+        raise InputError("is the run folder --out or inside it: keep the index outside it (next to it)", path=db)
+    if db is not None:
+        from artmotion.io import check_apart
+
+        check_apart(db, (source,))      # (the input is left as it was: no index among its frames)
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model,

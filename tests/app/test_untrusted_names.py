@@ -110,10 +110,27 @@ def test_a_batch_item_whose_name_is_not_text_leaves_the_others_to_run(tmp_path, 
     report = run_batch(archive, tmp_path / "runs", workers=1, processes=False)
     status = {os.path.basename(o.item): (o.status, o.message) for o in report.outcomes}
     assert status["good"][0] == "done"
-    assert status[ODD][0] == "ignored" and "not UTF-8" in status[ODD][1]
+    assert status[ODD][0] == "failed" and "not UTF-8" in status[ODD][1]     # (it was "ignored", exit 0)
     with EventIndex(tmp_path / "i.sqlite") as idx:      # the finished run goes into an index
         idx.add_run(tmp_path / "runs" / "good")
         assert [v["name"] for v in idx.videos()] == ["good"]
+
+
+def test_a_batch_item_that_cannot_be_run_fails_the_batch(tmp_path, run_cli):
+    """A video named by a link to nothing, or a sequence folder whose name is not UTF-8, was
+    counted as skipped (exit 0); alone in the folder, it was "no sequences or videos found". They
+    are items that failed (exit 2); a file that is no item is still left out and said."""
+    archive = tmp_path / "archive"
+    archive.mkdir()
+    (archive / "dangling.mp4").symlink_to(tmp_path / "nowhere.mp4")
+    (archive / "notes.txt").write_text("mine")
+    code, out, err = run_cli("batch", archive, "--out", tmp_path / "runs")
+    assert code == 2 and "dangling.mp4: a link to no file" in out + err, (out, err)
+    assert "0 done, 1 skipped, 1 failed" in out, out
+    (archive / "dangling.mp4").unlink()
+    (archive / ODD).mkdir()
+    code, out, err = run_cli("batch", archive, "--out", tmp_path / "runs")
+    assert code == 2 and "not UTF-8" in out + err and "no sequences" not in err, (out, err)
 
 
 def test_copies_of_one_source_at_two_paths_get_two_run_folders(tmp_path):

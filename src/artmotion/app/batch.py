@@ -28,21 +28,29 @@ from artmotion.io.media import IMAGE_EXTS, VIDEO_EXTS, depth_note
 NOT_AN_ITEM = "not a video, a folder of images or a MOTChallenge folder"
 
 
-def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]]]:
+def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], list[tuple[Path, str]]]:
     """The entries of ``root`` (not those inside its folders; hidden ones left out): the items
-    (MOTChallenge folders with a ``seqinfo.ini``, video files, image folders), and every other
-    entry with why it is none (a batch reports them: they were silently left out)."""
+    (MOTChallenge folders with a ``seqinfo.ini``, video files, image folders), every other entry
+    with why it is none (a batch reports them: they were silently left out), and the items that
+    cannot be run, with why (a folder or video whose name is not UTF-8, a video named by a link to
+    nothing: a batch counts them as failed, not as left out)."""
     root = Path(root)
     if not root.is_dir():
         raise InputError("not a folder", path=root)
-    items, others = [], []
+    items: list[Path] = []
+    others: list[tuple[Path, str]] = []
+    broken: list[tuple[Path, str]] = []
     for p in sorted(root.iterdir()):
         if p.name.startswith("."):
             continue
+        video = p.suffix.lower() in VIDEO_EXTS
         try:
             check_text(p, "the workers are sent it as text")
         except InputError as exc:
-            others.append((p, exc.reason))
+            (broken if p.is_dir() or video else others).append((p, exc.reason))
+            continue
+        if video and p.is_symlink() and not p.exists():
+            broken.append((p, "a link to no file"))
             continue
         if p.is_dir():
             try:
@@ -58,16 +66,16 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]]]:
                 others.append((p, f"{NOT_AN_ITEM} (the folders inside it are not searched)"))
             else:
                 others.append((p, NOT_AN_ITEM))
-        elif p.is_file() and p.suffix.lower() in VIDEO_EXTS:
+        elif p.is_file() and video:
             items.append(p)
         else:
             others.append((p, NOT_AN_ITEM))
-    return items, others
+    return items, others, broken
 
 
 def find_items(root: str | os.PathLike) -> list[Path]:
     """Sequences in ``root``: MOTChallenge folders (``seqinfo.ini``), video files, image folders."""
-    items, _ = scan(root)
+    items, _, _ = scan(root)
     if not items:
         raise InputError("no sequences or videos found", path=root)
     return items
@@ -331,8 +339,8 @@ def run_batch(
         check_text(path, "the workers are sent it as text")
     if os.path.lexists(out) and not out.is_dir():  # one error now, not one per item later
         raise InputError("is not a folder: the batch writes a run folder per item in it", path=out)
-    items, others = scan(root)
-    if not items:
+    items, others, broken = scan(root)
+    if not items and not broken:
         raise InputError("no sequences or videos found", path=root)
     mine = {Path(os.path.realpath(p)) for p in (out, *own)}
     outs = item_dirs(items, out)
@@ -344,6 +352,7 @@ def run_batch(
         real = Path(os.path.realpath(entry))
         if not any(real == p or real in p.parents for p in mine):
             report.outcomes.append(ItemOutcome(str(entry), "ignored", "", message=why))
+    report.outcomes += [ItemOutcome(str(entry), "failed", "", message=why) for entry, why in broken]
     todo: list[tuple[str, str]] = []
     for item_path, item_out in zip(items, outs):
         try:

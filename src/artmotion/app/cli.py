@@ -239,7 +239,7 @@ def batch_cmd(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from artmotion.app.batch import BatchInterrupted, run_batch
-    from artmotion.errors import ArtmotionError, check_range
+    from artmotion.errors import ArtmotionError, check_range, one_line
 
     check_range("--workers", workers, 1, 4 * (os.cpu_count() or 1), integer=True)  # (4 processes per core at most)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch
@@ -260,8 +260,8 @@ def batch_cmd(
                                f"sentences, {outcome.seconds:.1f} s{f' ({outcome.note})' if outcome.note else ''}")
                 elif outcome.status == "skipped":
                     typer.echo(f"skipped  {Path(outcome.item).name}: already finished")
-                elif outcome.status == "ignored":
-                    typer.echo(f"skipped  {Path(outcome.item).name}: {outcome.message}")
+                elif outcome.status == "ignored":   # (a name of bytes that are not UTF-8 written as \udce9)
+                    typer.echo(one_line(f"skipped  {Path(outcome.item).name}: {outcome.message}"))
                 sys.stdout.flush()
 
             report = run_batch(folder, out, workers=workers, scheduler=scheduler, force=force,
@@ -295,7 +295,7 @@ def batch_cmd(
         # one line per failed item; exit 2 when every failure is bad input, 1 when one is a bug
         for o in failed:
             where = "" if o.message.startswith(o.item) else f"{o.item}: "
-            typer.echo(f"artmotion: {'internal error' if o.internal else 'error'}: {where}{o.message}", err=True)
+            typer.echo(one_line(f"artmotion: {'internal error' if o.internal else 'error'}: {where}{o.message}"), err=True)
         raise typer.Exit(1 if any(o.internal for o in failed) else 2)
 
 

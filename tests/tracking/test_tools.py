@@ -390,6 +390,23 @@ def test_track_says_when_frames_are_scaled_to_the_model(tmp_path, run_cli, monke
     assert code == 0 and "scaled" not in out
 
 
+def test_frames_too_small_for_the_detector_are_refused_before_the_work(tmp_path, run_cli, monkeypatch):
+    """tool track (and run --tool-model) scaled 1x1 or 8x8 frames x330 to the model's area and
+    tracked them (exit 0), where tool train refuses frames under 32x32; the detector refuses them
+    in the API too."""
+    monkeypatch.setattr(ToolDetector, "load", classmethod(lambda cls, path: _FixedDetector()))
+    model = tmp_path / "m.pt"
+    model.write_bytes(b"model")
+    tiny = _noise_frames(tmp_path / "tiny", (1, 2), (8, 8))
+    for args in (("tool", "track", tiny, "--model", model, "--out", tmp_path / "p.csv"),
+                 ("run", tiny, "--tool-model", model, "--out", tmp_path / "r", "--no-video")):
+        code, out, err = run_cli(*args)
+        assert code == 2 and "frames of 8x8 are too small" in err and err.count("\n") == 1, err
+        assert not (tmp_path / "p.csv").exists() and not (tmp_path / "r").exists()
+    with pytest.raises(InputError, match="frames of 8x8 are too small"):
+        _untrained_detector().detect(np.zeros((8, 8, 3), np.uint8))
+
+
 def test_track_checks_frame_numbers_before_the_work(tmp_path, run_cli, monkeypatch):
     """Frames named by a date stamp were all tracked, then the OUTPUT file was blamed for their
     numbers; the first frame whose number no predictions file holds is named, before any work."""

@@ -218,9 +218,10 @@ def run_pipeline(
     pose = load_pose_model(pose_model) if pose_model is not None else None
     tools = None
     if tool_model is not None:
-        from artmotion.tracking.instruments.detector import ToolDetector
+        from artmotion.tracking.instruments.detector import ToolDetector, check_frame_size
 
         tools = ToolDetector.load(tool_model)
+        check_frame_size(seq.height, seq.width, path=seq.path)
     gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
     rules = "auto"
     if gt is not None:

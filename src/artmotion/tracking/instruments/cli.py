@@ -142,7 +142,9 @@ def track(
         check_range("--threshold", threshold, 0.0, 1.0, lo_open=True, hi_open=True)
     seq, numbers = _numbered_frames(source)
     from artmotion.tracking.api import too_short
-    from artmotion.tracking.instruments.detector import ToolDetector, scale_to
+    from artmotion.tracking.instruments.detector import ToolDetector, check_frame_size, scale_to
+
+    check_frame_size(seq.height, seq.width, path=seq.path)      # (1x1 frames were scaled x330 and tracked)
     from artmotion.tracking.instruments.track import CONFIRM_HITS, ToolTracker, track_sequence
 
     det = ToolDetector.load(model)

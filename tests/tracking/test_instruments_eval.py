@@ -339,6 +339,27 @@ def test_sparse_annotations_score_only_the_annotated_frames(tmp_path, run_cli):
     assert "precision 1.000 (12/12)" in out and "not scored: 48 predicted heads on 24 frames" in out
 
 
+def test_a_row_off_the_annotations_grid_is_said(tmp_path, run_cli):
+    """Annotations of every 5th frame plus one stray row (frame 12) made every frame count as
+    annotated and the empty ones as showing no instrument (precision 1.0 -> 0.25) without a word:
+    tool eval now says which frame lies off the grid most frames share."""
+    from artmotion.tracking.instruments.evaluate import grid_note
+
+    heads = _two_tools(40)
+    every5 = {f: hs for f, hs in heads.items() if f % 5 == 0}
+    assert grid_note(_gt(every5)) == "" and grid_note(_gt(heads)) == ""
+    assert grid_note(_gt({0: heads[0], 10: heads[10], 25: heads[0]})) == ""   # (no gap most share)
+    note = grid_note(_gt({**every5, 12: heads[12]}))
+    assert note.startswith("most annotated frames are 5 apart, but frame 12 lies off that grid: every 1 frame(s) "
+                           "from 0 to 35 count as annotated (27 without a row"), note
+    rows = "".join(f"{f},{k},{y},{x},20,{a}\n" for f, hs in sorted({**every5, 12: heads[12]}.items())
+                   for k, (x, y, a) in enumerate(hs))
+    gt_csv = _write(tmp_path, f"{TOOLS_HEADER}\n{rows}", "gt.csv")
+    write_predictions(tmp_path / "pred.csv", _pred({f: [(i, *h) for i, h in enumerate(hs)] for f, hs in heads.items()}))
+    code, out, err = run_cli("tool", "eval", gt_csv, tmp_path / "pred.csv")
+    assert code == 0 and f"note: {gt_csv}: most annotated frames are 5 apart, but frame 12" in err, err
+
+
 def test_a_frame_on_the_annotations_grid_without_a_row_shows_no_instrument():
     """Annotations of every frame with a gap (no instrument in view): a prediction there is a false
     one, as it is on an every-5th frame without rows; frames off the grid are not scored."""

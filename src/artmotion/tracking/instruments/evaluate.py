@@ -124,6 +124,27 @@ def annotated_frames(gt: dict[int, np.ndarray]) -> list[int]:
     return list(range(named[0], named[-1] + 1, max(step, 1)))
 
 
+def grid_note(gt: dict[int, np.ndarray]) -> str:
+    """What to tell a user whose annotations' frames mostly lie further apart than the grid
+    :func:`annotated_frames` reads from them (a stray row off a grid of every 5th frame makes every
+    frame count as annotated, the rowless ones as showing no instrument): the frames off the
+    commonest gap's grid; ``""`` when the grid is the commonest gap's."""
+    named = sorted(gt)
+    if len(named) < 3:
+        return ""
+    gaps = np.diff(named)
+    values, counts = np.unique(gaps, return_counts=True)
+    usual = int(values[np.argmax(counts)])
+    grid = annotated_frames(gt)
+    if 2 * counts.max() <= len(gaps) or len(grid) < 2 or grid[1] - grid[0] >= usual:
+        return ""       # (no gap most frames share, or the grid is theirs)
+    off = [f for f in named if (f - named[0]) % usual]
+    return (f"most annotated frames are {usual} apart, but frame{'s' if len(off) > 1 else ''} "
+            f"{', '.join(map(str, off[:5]))}{', ...' if len(off) > 5 else ''} lie{'' if len(off) > 1 else 's'} off "
+            f"that grid: every {grid[1] - grid[0]} frame(s) from {grid[0]} to {grid[-1]} count as annotated "
+            f"({len(grid) - len(named)} without a row as showing no instrument)")
+
+
 def evaluate_tools(gt: dict[int, np.ndarray], pred: dict[int, np.ndarray], radius: float = 15.0,
                    fps: float | None = None, link: float = 40.0) -> dict:
     """Score predicted instrument heads against annotations (see the module doc).

@@ -328,6 +328,14 @@ def test_run_says_why_ground_truth_gave_no_metrics(tmp_path, run_cli, sample_seq
     assert code == 0 and "metrics:" in out and "no metrics" not in err
 
 
+def test_run_says_its_detections_file_was_empty(tmp_path, run_cli, sample_seq):
+    """An empty det.txt gave 0 tracks and no word (track says "no detections in it")."""
+    seq = small_sequence(sample_seq, tmp_path / "seq", n=4)
+    (seq / "det" / "det.txt").write_text("")
+    code, out, err = run_cli("run", seq, "--out", tmp_path / "r", "--no-video")
+    assert code == 0 and "0 tracks" in out and "det.txt (no detections in it: nothing tracked)" in err, (out, err)
+
+
 def test_run_refuses_ground_truth_of_frames_the_sequence_has_not(tmp_path, run_cli, sample_seq):
     """A gt.txt row of frame 500 in a 4-frame sequence was scored as a missed box (the metrics
     moved without a word), where the same row in det.txt is refused: refused too, before the work

@@ -144,6 +144,8 @@ def run_cmd(
     if res.pose is not None and res.pose["applies"] and not res.pose["judged"]:
         typer.echo(f"pose model: applied without knowing whether the {res.pose['crops']} crops are like its training "
                    f"crops (too few to tell)")
+    if "(no detections in it" in res.detections:     # (an empty det.txt: said, as track says it)
+        typer.echo(f"note: {res.detections}", err=True)
     if res.metrics is None and res.gt_path is not None:
         typer.echo(f"note: no metrics: {res.gt_path} holds no box to score against (empty, or every box ignored)",
                    err=True)

@@ -60,6 +60,9 @@ class RunResult:
     #: the sequence's ground truth, when it has a file of it (``None``: none); no ``metrics`` with
     #: one means it held no box to score against (empty, or every box ignored)
     gt_path: Path | None = None
+    #: where the detections came from, as the tracker says it (a file's name and what it held, or
+    #: the detector's)
+    detections: str = ""
 
     @property
     def report(self) -> Path:
@@ -254,7 +257,8 @@ def run_pipeline(
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
-                     manifest["seconds"], manifest.get("pose"), seq.length, seq.depth, seq.gt_path)
+                     manifest["seconds"], manifest.get("pose"), seq.length, seq.depth, seq.gt_path,
+                     manifest.get("detections") or "")
 
 
 #: the files of a run folder

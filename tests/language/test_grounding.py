@@ -41,6 +41,22 @@ def small_dataset(tmp_path_factory):
     return out
 
 
+def test_12_bit_images_are_read_at_their_depth(small_dataset, tmp_path):
+    """A dataset of 12-bit images (16-bit PNGs of values up to 4095) was read by their top 8 bits,
+    nearly black (colour 0.05 instead of 0.87): now at the depth the images imply, as pose reads
+    its crops, and the report says so."""
+    from artmotion.language.grounding.evaluate import load_features
+
+    deep = tmp_path / "deep"
+    shutil.copytree(small_dataset, deep)
+    for png in (deep / "images").glob("*.png"):
+        img = cv2.imread(str(png))
+        cv2.imwrite(str(png), img.astype(np.uint16) * 16)
+    plain, twelve = load_features(small_dataset), load_features(deep)
+    assert plain["depth"] is None and twelve["depth"][0] == 12
+    np.testing.assert_allclose(twelve["color"], plain["color"], atol=0.02)
+
+
 @needs_espeak
 def test_dataset_is_deterministic(tmp_path):
     tiny = {"circle": (1, 0, 1, 0)}

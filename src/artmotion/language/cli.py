@@ -148,6 +148,8 @@ def grounding_eval(
     out = out if out is not None else (dataset if dataset.is_dir() else dataset.parent) / "eval"
     check_writable(out / "report.json")  # before the evaluation
     report = evaluate(dataset, out=out, seed=seed)
+    if report.get("note"):
+        typer.echo(f"note: {report['note']}", err=True)
     if as_json:
         brief = {m: {part: report[m][part] for part in ("retrieval", "unseen")} for m in ("compositional", "paired")}
         typer.echo(json.dumps(brief, indent=1))

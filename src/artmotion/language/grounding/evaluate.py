@@ -29,7 +29,7 @@ from sklearn.model_selection import KFold
 from artmotion.errors import InputError
 from artmotion.io import atomic_dir, atomic_write, save_figure
 from artmotion.io.atomic import check_apart, check_out_dir, outputs_of
-from artmotion.io.media import read_image
+from artmotion.io.media import depth_note, frame_depth, read_frame, read_image
 from artmotion.language.grounding.dataset import COLORS, SHAPES, read_index
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse, PairedSparse, estimate_linking
@@ -55,10 +55,13 @@ def load_features(dataset: str | os.PathLike, progress=None) -> dict:
     dataset = Path(dataset)
     rows = read_index(dataset)
     base = dataset if dataset.is_dir() else dataset.parent
+    # 16-bit images at the depth images spread over the dataset imply (a 12-bit camera's read by
+    # their top 8 bits were nearly black: colour 0.05 instead of 0.87), as pose reads its crops
+    depth = frame_depth([base / r["image"] for r in rows])
     C, S, A, A1, A2 = [], [], [], [], []
     for n, r in enumerate(rows):
         img_path = base / r["image"]
-        c, s = visual_features(read_image(img_path), where=str(img_path))
+        c, s = visual_features(read_frame(img_path, depth[0] if depth else None), where=str(img_path))
         C.append(c)
         S.append(s)
         A.append(audio_feature(base / r["speech"]))
@@ -72,6 +75,7 @@ def load_features(dataset: str | os.PathLike, progress=None) -> dict:
         "colors": np.array([r["color"] for r in rows]), "shapes": np.array([r["shape"] for r in rows]),
         "ids": [r["id"] for r in rows],
         "images": [str(base / r["image"]) for r in rows],
+        "depth": depth,
     }
 
 
@@ -344,6 +348,7 @@ def evaluate(dataset: str | os.PathLike, out: str | os.PathLike | None = None, *
     }
     report["holdouts"] = un["holdouts"]
     report["n_examples"] = int(len(F["colors"]))
+    report["note"] = depth_note(F.get("depth")) or None     # how 16-bit images were read (None: as 8-bit ones)
     report["seconds"] = {"features": round(t_feat, 2), "evaluation": round(t_eval, 2)}
     if out is not None:
         out = Path(out)

@@ -1,5 +1,7 @@
 import json
 
+import cv2
+import numpy as np
 import pytest
 
 from artmotion.app.index import EventIndex, parse_query
@@ -235,9 +237,11 @@ def test_run_refuses_an_index_inside_its_run_folder(tmp_path, run_cli, sample_se
     assert code == 2 and "run: is the run folder --out or inside it" in err, err
     frames = tmp_path / "frames"
     frames.mkdir()
+    for k in (1, 2):
+        cv2.imwrite(str(frames / f"{k:06d}.png"), np.zeros((48, 64, 3), np.uint8))
     code, _, err = run_cli("run", frames, "--out", tmp_path / "run", "--index", frames / "i.sqlite")
     assert code == 2 and "i.sqlite: is inside the input folder" in err and err.count("\n") == 1, err
-    assert list(tmp_path.iterdir()) == [frames] and list(frames.iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"] and len(list(frames.iterdir())) == 2
 
 
 @pytest.mark.parametrize("change", ["UPDATE sentences SET tracks = '[1e400]'", "UPDATE sentences SET tracks = '[1.5]'",

@@ -6,6 +6,7 @@ whose files changed since."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import sqlite3
@@ -17,6 +18,7 @@ import pytest
 
 from artmotion.app import EventIndex, run_pipeline
 from artmotion.app.index import parse_query
+from artmotion.app.pipeline import manifest_digest
 from artmotion.errors import InputError
 
 
@@ -325,6 +327,12 @@ def test_index_add_refuses_a_manifest_edited_or_malformed_since_the_run(tmp_path
     cases = {
         "changed since the run: run.json": edited(lambda m: m["sentences"][0].update(sentence="Person 9 flies.")),
         "changed since the run: run.json ": edited(lambda m: m["track_summary"][0].update(boxes=1)),
+        # its digests taken out: what it says the files hold is still compared with them
+        " changed since the run: run.json": edited(lambda m: (m["sentences"][0].update(sentence="Person 9 flies."),
+                                                              m.pop("sha256"), m.pop("manifest_sha256"))),
+        # what no file holds (a sentence's tracks, frames, verb): the manifest's own digest
+        " changed since the run: run.json ": edited(lambda m: m["sentences"][0].update(verb="enters", frame_start=2)),
+        "'manifest_sha256' is not a SHA-256 digest": edited(lambda m: m.update(manifest_sha256="x")),
         "corrupt manifest: NaN is not a number JSON allows": good.replace('"tracking_fps": ', '"tracking_fps": NaN, "x": '),
         "corrupt manifest: key 'name' given twice": good.replace('"name": ', '"name": "other", "name": ', 1),
         "one line of text": edited(lambda m: m["sentences"][0].update(sentence=sentence + "\nPerson 9 flies.")),
@@ -336,6 +344,17 @@ def test_index_add_refuses_a_manifest_edited_or_malformed_since_the_run(tmp_path
         code, _, err = run_cli("index", "add", res.out_dir, "--db", tmp_path / "idx.sqlite")
         assert code == 2 and needle.strip() in err and err.count("\n") == 1, (needle, err)
         assert not (tmp_path / "idx.sqlite").exists()
+    path.write_text(good)
+    sentences = res.out_dir / "sentences.txt"      # not UTF-8 (its digest matched): an internal error before
+    text = sentences.read_bytes()
+    sentences.write_bytes(b"\xff" + text)
+    damaged = json.loads(good)
+    damaged["sha256"]["sentences.txt"] = hashlib.sha256(b"\xff" + text).hexdigest()
+    damaged["manifest_sha256"] = manifest_digest(damaged)
+    path.write_text(json.dumps(damaged))
+    code, _, err = run_cli("index", "add", res.out_dir, "--db", tmp_path / "idx.sqlite")
+    assert code == 2 and "changed since the run: run.json" in err and err.count("\n") == 1, err
+    sentences.write_bytes(text)
     path.write_text(good)
     assert run_cli("index", "add", res.out_dir, "--db", tmp_path / "idx.sqlite")[0] == 0
 

@@ -82,6 +82,9 @@ def test_a_run_folder_whose_name_is_not_text_is_named_not_the_index(tmp_path, ru
         code, _, err = run_cli("index", "add", odd, "--db", index)
         assert code == 2 and "not UTF-8" in err and "rename the folder" in err and "damaged" not in err, err
     assert db.read_bytes() == before and not (tmp_path / "new.sqlite").exists()
+    (tmp_path / "link").symlink_to(odd)     # (the index keeps the folder resolved: the link's target)
+    code, _, err = run_cli("index", "add", tmp_path / "link", "--db", db)
+    assert code == 2 and "not UTF-8" in err and "damaged" not in err, err
 
 
 @pytest.mark.parametrize("what", ["video", "out", "annotated"])
@@ -124,13 +127,19 @@ def test_a_batch_item_that_cannot_be_run_fails_the_batch(tmp_path, run_cli):
     archive.mkdir()
     (archive / "dangling.mp4").symlink_to(tmp_path / "nowhere.mp4")
     (archive / "notes.txt").write_text("mine")
+    (archive / "unmounted").symlink_to(tmp_path / "usb" / "MOT17-02")     # a sequence on a disk not there
     code, out, err = run_cli("batch", archive, "--out", tmp_path / "runs")
-    assert code == 2 and "dangling.mp4: a link to no file" in out + err, (out, err)
-    assert "0 done, 1 skipped, 1 failed" in out, out
+    assert code == 2 and "dangling.mp4: a link to nothing" in err and "unmounted: a link to nothing" in err, err
+    assert "0 done, 1 skipped, 2 failed" in out, out
     (archive / "dangling.mp4").unlink()
-    (archive / ODD).mkdir()
+    (archive / "unmounted").unlink()
+    (archive / ODD).mkdir()                     # a folder that is no item, whatever its name: left out
+    (archive / ODD / "notes.txt").write_text("mine")
     code, out, err = run_cli("batch", archive, "--out", tmp_path / "runs")
-    assert code == 2 and "not UTF-8" in out + err and "no sequences" not in err, (out, err)
+    assert code == 2 and "no sequences or videos found" in err, (out, err)
+    (archive / ODD / "000001.png").write_bytes(b"")   # an item (a folder of images): fails
+    code, out, err = run_cli("batch", archive, "--out", tmp_path / "runs")
+    assert code == 2 and "not UTF-8" in err and "no sequences" not in err, (out, err)
 
 
 def test_copies_of_one_source_at_two_paths_get_two_run_folders(tmp_path):

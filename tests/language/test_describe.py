@@ -299,6 +299,16 @@ def test_cli_describe_refuses_what_it_would_guess(tmp_path, run_cli):
         assert code == 2 and needle in err and err.count("\n") == 1, (args, err)
     code, out, err = run_cli("describe", res, "--class", "1=tool", "--class", "1=tool", "--class", "cart")
     assert code == 0 and "Tool 1" in out, err
+    gt17 = tmp_path / "gt17.txt"     # MOT16/17 ground truth: track 7 is a car, left out of what is described
+    gt17.write_text("".join(f"{f},1,{10 + f},10,20,40,1,1,1.0\n{f},7,{50 + f},10,20,40,1,3,1.0\n" for f in range(1, 9)))
+    code, out, err = run_cli("describe", gt17, "--class", "7=car")
+    assert code == 2 and "--class 7=car: no such track among the pedestrians described" in err, err
+    # an angle named '..._std' is an angle when its own std column is there (pose train takes it)
+    pose.write_text("image,open_std,open_std_std\n" + "".join(f"{k:06d}.png,{10 * k},1\n" for k in range(1, 21)))
+    code, out, err = run_cli("describe", res, "--pose", pose, "--pose-column", "open_std")
+    assert code == 0, err
+    code, out, err = run_cli("describe", res, "--pose", pose, "--pose-column", "open_std_std")
+    assert code == 2 and "not an angle column: 'open_std_std' (angle columns: open_std)" in err, err
 
 
 def test_parse_classes():

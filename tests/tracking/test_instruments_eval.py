@@ -349,6 +349,8 @@ def test_a_row_off_the_annotations_grid_is_said(tmp_path, run_cli):
     every5 = {f: hs for f, hs in heads.items() if f % 5 == 0}
     assert grid_note(_gt(every5)) == "" and grid_note(_gt(heads)) == ""
     assert grid_note(_gt({0: heads[0], 10: heads[10], 25: heads[0]})) == ""   # (no gap most share)
+    first = grid_note(_gt({**{f: h for f, h in every5.items() if f}, 3: heads[3]}))    # the stray row first
+    assert first.startswith("most annotated frames are 5 apart, but frame 3 lies off that grid"), first
     note = grid_note(_gt({**every5, 12: heads[12]}))
     assert note.startswith("most annotated frames are 5 apart, but frame 12 lies off that grid: every 1 frame(s) "
                            "from 0 to 35 count as annotated (27 without a row"), note

@@ -405,6 +405,7 @@ def test_frames_too_small_for_the_detector_are_refused_before_the_work(tmp_path,
         assert not (tmp_path / "p.csv").exists() and not (tmp_path / "r").exists()
     with pytest.raises(InputError, match="frames of 8x8 are too small"):
         _untrained_detector().detect(np.zeros((8, 8, 3), np.uint8))
+    assert _untrained_detector().detect(np.zeros((40, 9000, 3), np.uint8)).shape[1] == 5   # (larger: scaled)
 
 
 def test_track_checks_frame_numbers_before_the_work(tmp_path, run_cli, monkeypatch):

@@ -32,8 +32,8 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
     """The entries of ``root`` (not those inside its folders; hidden ones left out): the items
     (MOTChallenge folders with a ``seqinfo.ini``, video files, image folders), every other entry
     with why it is none (a batch reports them: they were silently left out), and the items that
-    cannot be run, with why (a folder or video whose name is not UTF-8, a video named by a link to
-    nothing: a batch counts them as failed, not as left out)."""
+    cannot be run, with why (an item whose name is not UTF-8, a link to nothing: an unmounted
+    disk's sequence or video; a batch counts them as failed, not as left out)."""
     root = Path(root)
     if not root.is_dir():
         raise InputError("not a folder", path=root)
@@ -43,14 +43,8 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
     for p in sorted(root.iterdir()):
         if p.name.startswith("."):
             continue
-        video = p.suffix.lower() in VIDEO_EXTS
-        try:
-            check_text(p, "the workers are sent it as text")
-        except InputError as exc:
-            (broken if p.is_dir() or video else others).append((p, exc.reason))
-            continue
-        if video and p.is_symlink() and not p.exists():
-            broken.append((p, "a link to no file"))
+        if p.is_symlink() and not p.exists():
+            broken.append((p, "a link to nothing (no such file or folder)"))
             continue
         if p.is_dir():
             try:
@@ -66,10 +60,15 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
                 others.append((p, f"{NOT_AN_ITEM} (the folders inside it are not searched)"))
             else:
                 others.append((p, NOT_AN_ITEM))
-        elif p.is_file() and video:
+        elif p.is_file() and p.suffix.lower() in VIDEO_EXTS:
             items.append(p)
         else:
             others.append((p, NOT_AN_ITEM))
+        if items and items[-1] is p:
+            try:
+                check_text(p, "the workers are sent it as text")
+            except InputError as exc:
+                broken.append((items.pop(), exc.reason))
     return items, others, broken
 
 

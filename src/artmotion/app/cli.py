@@ -116,14 +116,10 @@ def run_cmd(
                                                                              *Path(os.path.realpath(db)).parents):
         # the next run into --out replaces the folder whole, or refuses a folder holding other files
         raise InputError("is the run folder --out or inside it: keep the index outside it (next to it)", path=db)
-    if db is not None:
-        from artmotion.io import check_apart
-
-        check_apart(db, (source,))      # (the input is left as it was: no index among its frames)
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
     res = run_pipeline(source, out, det=det, object_class=object_class, progress=sys.stderr.isatty(), video=video,
                        pose_model=pose_model, detector=detector, detect_every=detect_every, tool_model=tool_model,
-                       fps=fps, bits=bits)
+                       fps=fps, bits=bits, also_writes=(db,) if db is not None else ())
     from artmotion.io.media import depth_note
 
     if note := depth_note(res.depth):

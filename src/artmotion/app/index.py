@@ -241,7 +241,7 @@ class EventIndex:
                                  f"got {type(item).__name__}")
             run_dir, run = item
             # (the folder is kept as text: a name of other bytes called the index damaged)
-            check_text(os.path.abspath(run_dir), fix="rename the folder")
+            check_text(Path(run_dir).resolve(), fix="rename the folder")     # (kept resolved: _insert)
             check_manifest(run, Path(run_dir) / MANIFEST)   # (a dict given from Python, not read by load_run)
             check_run_files(run_dir, run)       # the files the manifest describes, as the run left them
         added = []

@@ -20,6 +20,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import time
 from contextlib import closing
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from artmotion.errors import InputError, check_bool
 from artmotion.io import atomic_dir, atomic_write, check_apart, read_mot, write_events, write_mot
 from artmotion.io.atomic import check_out_dir, outputs_of
 from artmotion.io.events import event_problem, read_events
-from artmotion.io.files import as_path, strict_json
+from artmotion.io.files import as_path, read_text, strict_json
 from artmotion.io.media import MAX_FPS, MIN_FPS, cv2_name
 from artmotion.io.mot import MAX_COORD, MAX_FRAME, MAX_ID
 from artmotion.tracking.config import DETECT_EVERY
@@ -189,6 +190,7 @@ def run_pipeline(
     tool_model: str | os.PathLike | None = None,
     fps: float | None = None,
     bits: int | None = None,
+    also_writes: tuple[str | os.PathLike, ...] = (),
 ) -> RunResult:
     """Track ``source``, describe it in sentences, score it if ground truth is present, report.
 
@@ -200,7 +202,9 @@ def run_pipeline(
     surgical instruments with it instead of people; their entries and exits come from the tracks.
     ``fps``: the frame rate, when the input does not say it (a folder of images; else 25 is
     assumed) or says it wrong. ``bits``: the bits 16-bit image frames hold, when frames spread
-    over them said it wrong (:meth:`~artmotion.io.sequence.Sequence.set_bits`).
+    over them said it wrong (:meth:`~artmotion.io.sequence.Sequence.set_bits`). ``also_writes``:
+    files the caller writes besides the run folder (an index), kept out of the folder of frames
+    read as the run folder is (checked before the work).
     """
     from artmotion.language.describe import parse_classes
     from artmotion.tracking import open_sequence
@@ -224,7 +228,7 @@ def run_pipeline(
         from artmotion.tracking.instruments.detector import ToolDetector, check_frame_size
 
         tools = ToolDetector.load(tool_model)
-        check_frame_size(seq.height, seq.width, path=seq.path)
+        check_frame_size(seq.height, seq.width, path=seq.path, training=False)
     gt = read_mot(seq.gt_path) if seq.gt_path is not None else None
     rules = "auto"
     if gt is not None:
@@ -237,7 +241,8 @@ def run_pipeline(
     fingerprint = source_fingerprint(seq)
     inputs = input_digest(seq, det)
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
-    check_apart(out, (seq.folder,))
+    for path in (out, *also_writes):
+        check_apart(path, (seq.folder,))
     check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
     if video:
         cv2_name(out)       # (OpenCV writes annotated.mp4 in it)
@@ -254,6 +259,7 @@ def run_pipeline(
         manifest["seconds"] = round(time.perf_counter() - t0, 3)
         if batch is not None:
             manifest["batch"] = batch
+        manifest["manifest_sha256"] = manifest_digest(manifest)
         with atomic_write(dst / MANIFEST) as fh:
             json.dump(manifest, fh, indent=1, allow_nan=False)
     return RunResult(out, seq.name, tracks, manifest["events"], manifest["sentences"], manifest["metrics"],
@@ -391,13 +397,31 @@ def check_run_files(run_dir: str | os.PathLike, run: dict) -> None:
         if not same:
             raise InputError(f"changed since the run: {name}{'' if path.exists() else ' (missing)'}; run it again",
                              path=run_dir)
-    if run.get("sha256"):   # the files are the run's: the manifest's copy of what they hold must be too
-        told = [s["sentence"] for s in run["sentences"]]
-        if (Path(run_dir) / "sentences.txt").read_text(encoding="utf-8").splitlines() != told \
-                or read_events(Path(run_dir) / "events.jsonl") != run["events"] \
-                or track_summary(read_mot(Path(run_dir) / "results.txt")) != run["track_summary"]:
-            raise InputError(f"changed since the run: {MANIFEST} (its tracks, events or sentences are not its "
-                             "files'); run it again", path=run_dir)
+    # the manifest's own copy of the run: its digest (what the sentences' tracks, frames and verbs
+    # are, which no other file holds), and what it says the files hold, whenever they are there
+    # (a manifest edited with its digests taken out said what it liked)
+    changed = "manifest_sha256" in run and manifest_digest(run) != run["manifest_sha256"]
+    folder = Path(run_dir)
+    if not changed and all((folder / name).is_file() for name in CHECKED_FILES):
+        try:
+            changed = (read_text(folder / "sentences.txt", "a run's sentences file").splitlines()
+                       != [s["sentence"] for s in run["sentences"]]
+                       or read_events(folder / "events.jsonl") != run["events"]
+                       or track_summary(read_mot(folder / "results.txt")) != run["track_summary"])
+        except InputError:
+            changed = True
+    if changed:
+        raise InputError(f"changed since the run: {MANIFEST} (it is not what the run wrote, or not what its files "
+                         "hold); run it again", path=run_dir)
+
+
+def manifest_digest(run: dict) -> str:
+    """SHA-256 of a manifest's content (its ``manifest_sha256`` left out), as canonical JSON:
+    what :func:`check_run_files` compares with the digest the run recorded."""
+    body = {k: v for k, v in run.items() if k != "manifest_sha256"}
+    body = json.loads(json.dumps(body, allow_nan=False))    # (as read back: tuples lists, number keys text)
+    text = json.dumps(body, sort_keys=True, ensure_ascii=False, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
 
 
 def is_finished(run_dir: str | os.PathLike, source: str | os.PathLike | None = None, run: dict | None = None) -> bool:
@@ -499,6 +523,9 @@ def _manifest_problem(run) -> str | None:
     if digests is not None and not (isinstance(digests, dict) and sorted(digests) == sorted(CHECKED_FILES) and all(
             isinstance(d, str) and len(d) == 64 for d in digests.values())):
         return f"'sha256' is not an object of the SHA-256 digests of {', '.join(CHECKED_FILES)}"
+    own = run.get("manifest_sha256")
+    if own is not None and not (isinstance(own, str) and re.fullmatch(r"[0-9a-f]{64}", own)):
+        return "'manifest_sha256' is not a SHA-256 digest"
     for key in ("tracking_fps", "seconds"):
         if run.get(key) is not None and not _is_number(run[key], 0.0, 1e300):
             return f"{key!r} is not a finite number >= 0"

@@ -60,6 +60,7 @@ def describe_cmd(
     if pose_track is not None:
         check_range("--pose-track", pose_track, -MAX_ID, MAX_ID, integer=True)
     rows = read_mot(results)
+    every_id = set(rows[:, 1].astype(int).tolist()) if len(rows) else set()
     if len(rows) and mot_columns(results) == 9 and all(int(c) == c and c in MOT17_CLASSES for c in rows[:, 7]):
         # MOT16/17 ground truth (its classes 1-13 in column 8): occluders, reflections, ... are no people
         people = mot17_people(rows)
@@ -94,7 +95,9 @@ def describe_cmd(
             raise InputError(f"--pose-track {pose_track}: no such track in the results", path=results)
         for k, name in classes[1].items():
             if k not in ids:
-                raise InputError(f"--class {k}={name}: no such track in the results", path=results)
+                left = " among the pedestrians described (it is left out: not one with consider = 1)" \
+                    if k in every_id else " in the results"
+                raise InputError(f"--class {k}={name}: no such track{left}", path=results)
         first = int(rows[:, 0].min())
         if pose_seq is not None and (pose_seq[0].min() < first or pose_seq[0].max() > last):
             raise InputError(f"pose frames {pose_seq[0].min()}-{pose_seq[0].max()} are not within the results' "

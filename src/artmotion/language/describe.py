@@ -434,7 +434,8 @@ def read_pose(path: str | os.PathLike, column: str | None = None) -> tuple[np.nd
     header, rows = read_csv(path, what="pose prediction CSV")
     if "image" not in header:
         raise InputError("not a pose prediction CSV: no 'image' column in the header", path=path, line=1)
-    angles = [h for h in header if h != "image" and not h.endswith("_std")]
+    # (a column is a std when its angle is there too: an angle may be named 'open_std' itself)
+    angles = [h for h in header if h != "image" and not (h.endswith("_std") and h[:-4] in header)]
     if column is None:
         cands = [h for h in angles if "open" in h.lower()]
         if not cands:

@@ -144,7 +144,7 @@ def track(
     from artmotion.tracking.api import too_short
     from artmotion.tracking.instruments.detector import ToolDetector, check_frame_size, scale_to
 
-    check_frame_size(seq.height, seq.width, path=seq.path)      # (1x1 frames were scaled x330 and tracked)
+    check_frame_size(seq.height, seq.width, path=seq.path, training=False)   # (1x1 frames were scaled x330)
     from artmotion.tracking.instruments.track import CONFIRM_HITS, ToolTracker, track_sequence
 
     det = ToolDetector.load(model)

@@ -69,13 +69,14 @@ def _check_heads(heads, i: int, shape: tuple[int, ...]) -> np.ndarray:
     return H
 
 
-def check_frame_size(h: int, w: int, path=None) -> None:
+def check_frame_size(h: int, w: int, path=None, training: bool = True) -> None:
     """An :class:`InputError` (naming ``path``, the frames) unless frames of ``w`` x ``h`` can be
-    trained on or searched: at least 32 pixels a side (4 cells of the network's output), at most 8192."""
+    trained on or searched: at least 32 pixels a side (4 cells of the network's output), and at
+    most 8192 for ``training`` (frames to search are scaled to the training frames' area)."""
     if h < _MIN_SIDE or w < _MIN_SIDE:
         raise InputError(f"frames of {w}x{h} are too small (a detector is trained on and finds instruments in "
                          f"frames of at least {_MIN_SIDE}x{_MIN_SIDE} pixels)", path=path)
-    if max(h, w) > _MAX_SIDE:
+    if training and max(h, w) > _MAX_SIDE:
         raise InputError(f"frames of {w}x{h} are too large (at most {_MAX_SIDE} pixels a side)", path=path)
 
 
@@ -218,7 +219,7 @@ class ToolDetector(Params):
         for im in frames:
             check_frame(im)
         h, w = frames[0].shape[:2]
-        check_frame_size(h, w)
+        check_frame_size(h, w, training=False)
         other = next((im.shape for im in frames if im.shape[:2] != (h, w)), None)
         if other is not None:
             raise InputError(f"the frames of one batch must be of one size, got {w}x{h} and {other[1]}x{other[0]}")

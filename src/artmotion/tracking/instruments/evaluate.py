@@ -138,7 +138,8 @@ def grid_note(gt: dict[int, np.ndarray]) -> str:
     grid = annotated_frames(gt)
     if 2 * counts.max() <= len(gaps) or len(grid) < 2 or grid[1] - grid[0] >= usual:
         return ""       # (no gap most frames share, or the grid is theirs)
-    off = [f for f in named if (f - named[0]) % usual]
+    residues, many = np.unique(np.asarray(named) % usual, return_counts=True)
+    off = [f for f in named if f % usual != residues[np.argmax(many)]]
     return (f"most annotated frames are {usual} apart, but frame{'s' if len(off) > 1 else ''} "
             f"{', '.join(map(str, off[:5]))}{', ...' if len(off) > 5 else ''} lie{'' if len(off) > 1 else 's'} off "
             f"that grid: every {grid[1] - grid[0]} frame(s) from {grid[0]} to {grid[-1]} count as annotated "

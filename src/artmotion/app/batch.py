@@ -40,6 +40,15 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
     items: list[Path] = []
     others: list[tuple[Path, str]] = []
     broken: list[tuple[Path, str]] = []
+
+    def item(p: Path) -> None:          # (sent to the workers as text: a name that is not fails)
+        try:
+            check_text(p, "the workers are sent it as text")
+        except InputError as exc:
+            broken.append((p, exc.reason))
+        else:
+            items.append(p)
+
     for p in sorted(root.iterdir()):
         if p.name.startswith("."):
             continue
@@ -53,7 +62,7 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
                 others.append((p, f"cannot read this folder: {exc.strerror or exc}"))
                 continue
             if (p / "seqinfo.ini").is_file() or any(q.suffix.lower() in IMAGE_EXTS for q in entries if q.is_file()):
-                items.append(p)
+                item(p)
             elif not entries:
                 others.append((p, "an empty folder"))
             elif any(q.is_dir() for q in entries):
@@ -61,14 +70,9 @@ def scan(root: str | os.PathLike) -> tuple[list[Path], list[tuple[Path, str]], l
             else:
                 others.append((p, NOT_AN_ITEM))
         elif p.is_file() and p.suffix.lower() in VIDEO_EXTS:
-            items.append(p)
+            item(p)
         else:
             others.append((p, NOT_AN_ITEM))
-        if items and items[-1] is p:
-            try:
-                check_text(p, "the workers are sent it as text")
-            except InputError as exc:
-                broken.append((items.pop(), exc.reason))
     return items, others, broken
 
 

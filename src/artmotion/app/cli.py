@@ -104,7 +104,7 @@ def run_cmd(
     import sys
 
     from artmotion.app.pipeline import run_pipeline
-    from artmotion.tracking.api import too_short
+    from artmotion.tracking.api import NO_DETECTIONS, too_short
 
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     if db is not None:
@@ -112,8 +112,8 @@ def run_cmd(
 
         for path in (source.resolve(), *(() if out is None else (out.resolve(),))):
             check_text(path)
-    if db is not None and out is not None and Path(os.path.realpath(out)) in (Path(os.path.realpath(db)),
-                                                                             *Path(os.path.realpath(db)).parents):
+    where = Path(os.path.realpath(db)) if db is not None else None
+    if where is not None and out is not None and Path(os.path.realpath(out)) in (where, *where.parents):
         # the next run into --out replaces the folder whole, or refuses a folder holding other files
         raise InputError("is the run folder --out or inside it: keep the index outside it (next to it)", path=db)
     # the progress bar only on a terminal: in a log, an error stays the one line on stderr
@@ -140,7 +140,7 @@ def run_cmd(
     if res.pose is not None and res.pose["applies"] and not res.pose["judged"]:
         typer.echo(f"pose model: applied without knowing whether the {res.pose['crops']} crops are like its training "
                    f"crops (too few to tell)")
-    if "(no detections in it" in res.detections:     # (an empty det.txt: said, as track says it)
+    if res.detections.endswith(NO_DETECTIONS):     # (an empty det.txt: said, as track says it)
         typer.echo(f"note: {res.detections}", err=True)
     if res.metrics is None and res.gt_path is not None:
         typer.echo(f"note: no metrics: {res.gt_path} holds no box to score against (empty, or every box ignored)",

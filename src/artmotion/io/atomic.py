@@ -464,8 +464,10 @@ def outputs_of(marker: str, names: str | Iterable[str], keys: Iterable[str] = ()
     folders = {name: re.compile(rx) for name, rx in (inside or {}).items()}
 
     def ours(entry: Path) -> bool:
-        if entry.name == marker or not allowed(entry.name):
-            return entry.name == marker
+        if entry.name == marker:
+            return True
+        if not allowed(entry.name):
+            return False
         if entry.name not in folders:
             return not entry.is_dir() or entry.is_symlink()
         if entry.is_symlink() or not entry.is_dir():

@@ -21,6 +21,8 @@ from artmotion.tracking.online import OnlineTracker
 __all__ = ["DEFAULT_EXPERTS", "Sequence", "TrackResult", "open_sequence", "run_tracker", "track"]
 
 DEFAULT_EXPERTS = ("det", "motion")
+#: what the detections' source says of an empty detections file (:attr:`TrackResult.detector`)
+NO_DETECTIONS = " (no detections in it: nothing tracked)"
 
 
 @dataclass
@@ -201,7 +203,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
         dets, probabilities = read_detections(det_path)
         # (an empty file: a scene with nobody in it, or a mistake; said where the detections are named)
         source_name = str(det_path) + ("" if probabilities else " (scores not in [0, 1]: ranked)") \
-            + ("" if dets else " (no detections in it: nothing tracked)")
+            + ("" if dets else NO_DETECTIONS)
         if dets and max(dets) > seq.length and seq.images is not None:
             raise InputError(f"detections for frame {max(dets)} but the sequence has {seq.length} frames",
                              path=det_path)

@@ -144,6 +144,24 @@ def test_events_are_json_lines(tud_run):
         assert ev["type"] in {"enter", "exit", "merge", "split"}
 
 
+def test_outputs_never_replace_the_sequences_own_files(run_cli, sample_seq, tmp_path):
+    """--out over the sequence's seqinfo.ini or gt/gt.txt replaced it (the folder then could not be
+    read, or eval scored the tracks against themselves), and --video into a sequence folder of one
+    video made it a folder of two (unreadable): refused before the work, nothing changed."""
+    import shutil
+
+    seq = tmp_path / "seq"
+    shutil.copytree(sample_seq, seq)
+    before = {p: p.read_bytes() for p in seq.rglob("*") if p.is_file()}
+    for args, needle in (((seq, "--out", seq / "seqinfo.ini"), "seqinfo.ini: is also an input"),
+                         ((seq, "--out", tmp_path / "r.txt", "--events", seq / "gt" / "gt.txt"), "gt.txt: is also an input"),
+                         ((seq, "--out", tmp_path / "r.txt", "--video", seq / "a.mp4"), "a.mp4: is inside the input folder")):
+        code, out, err = run_cli("track", *args, "--no-progress")
+        assert code == 2 and needle in err and err.count("\n") == 1, err
+    assert {p: p.read_bytes() for p in seq.rglob("*") if p.is_file()} == before
+    assert not (tmp_path / "r.txt").exists()
+
+
 def test_outputs_are_written_all_or_none(run_cli, sample_seq, tmp_path, monkeypatch):
     """A full disk while the results are written (after the annotated video was) left the new video
     beside the older results of the same names: the outputs are renamed together, or none is."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import typer
 
 from artmotion.tracking.config import DETECT_EVERY
@@ -80,7 +82,14 @@ def track_command(
     seq.set_bits(bits)
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
-    check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path))
+    # (and the sequence's own seqinfo.ini and ground truth: an output over them broke the folder)
+    folder = Path(source) if Path(source).is_dir() else None
+    ini = folder / "seqinfo.ini" if folder is not None else None
+    check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path, seq.gt_path, ini))
+    if video and folder is not None and seq.video is not None:
+        from artmotion.io import check_apart
+
+        check_apart(video, (folder,))   # (a second video in a sequence folder of one makes it unreadable)
     if progress is None:
         progress = sys.stderr.isatty()
     # the outputs are written under temporary names and renamed together once all are written: a

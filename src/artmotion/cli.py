@@ -182,6 +182,18 @@ def _note_slashed(args: list[str]) -> None:
         atomic.SLASHED.update(slashed)
 
 
+def _empty_argument(args: list[str]) -> str | None:
+    """The option (or ``an argument``) given an empty value (``--out ''``, ``--out=``, ``''``), or
+    None: a path option takes ``''`` as the current folder (``--out ''`` wrote into it)."""
+    for k, arg in enumerate(args):
+        if arg.startswith("--") and arg.endswith("=") and len(arg) > 3:
+            return arg[:-1]
+        if arg == "":
+            before = args[k - 1] if k else ""
+            return before if before.startswith("-") and "=" not in before else "an argument"
+    return None
+
+
 def run() -> None:
     """The console script (and ``python -m artmotion``): :func:`main`, then exit with its status.
 
@@ -231,12 +243,16 @@ def _main(argv: list[str] | None) -> int:
             previous[sig] = signal.signal(sig, _terminate)
         except ValueError:      # not the main thread (a test runner, an embedding program)
             pass
-    _note_slashed(sys.argv[1:] if argv is None else argv)
+    args = sys.argv[1:] if argv is None else argv
+    _note_slashed(args)
+    if (empty := _empty_argument(args)) is not None:
+        return _fail(f"error: {empty} is empty (a file name or a value cannot be: a path option took '' as the "
+                     "current folder)", 2)
     stdout = sys.stdout
     if stdout is not None and not isinstance(stdout, _Stdout):
         sys.stdout = _Stdout(stdout)
     try:
-        code = _app_for(sys.argv[1:] if argv is None else argv)(args=argv, prog_name="artmotion", standalone_mode=False)
+        code = _app_for(args)(args=argv, prog_name="artmotion", standalone_mode=False)
         code = code if isinstance(code, int) else 0
         if isinstance(sys.stdout, _Stdout):     # (no stdout at all: nothing was printed, nothing failed)
             sys.stdout.flush()

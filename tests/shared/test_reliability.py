@@ -859,3 +859,17 @@ def test_9_a_batch_of_same_named_sequences_indexes_every_one(tmp_path):
     assert code == 0 and len(lines) == 4, out
     assert sorted(line.split(" (")[1].split("):")[0] for line in lines) == [
         str((archive / copy).resolve()) for copy in ("a", "b", "c", "d")]
+
+
+def test_an_empty_name_or_value_is_refused_before_anything(tmp_path, run_cli, monkeypatch):
+    """A path option took '' as the current folder: `articulation video X --out ''` wrote
+    result.json and parts.png into it, `track ''` read it as frames, `eval '' gt.txt` named '.'."""
+    monkeypatch.chdir(tmp_path)
+    for args, what in ((("articulation", "video", "x.avi", "--out", ""), "--out is empty"),
+                       (("articulation", "video", "x.avi", "--out="), "--out is empty"),
+                       (("eval", "", "gt.txt"), "an argument is empty"),
+                       (("track", ""), "an argument is empty")):
+        code, out, err = run_cli(*args)
+        assert code == 2 and err == f"artmotion: error: {what} (a file name or a value cannot be: a path option " \
+                                     "took '' as the current folder)\n", err
+    assert list(tmp_path.iterdir()) == []

@@ -34,6 +34,18 @@ def test_fit_json_revolute(tmp_path, run_cli):
     assert len(res["motion"]) == 150 and len(res["prediction"]) == 5
 
 
+def test_fit_json_of_a_file_name_that_is_not_utf8_is_strict_json(tmp_path, run_cli):
+    """The name's bytes that are not UTF-8 went into the JSON as a lone surrogate (a strict reader
+    refuses it, jq loses the name): written escaped, as an error line writes it."""
+    import os
+
+    p = _write(tmp_path / os.fsdecode(b"d\xe9.txt"), _arc())
+    code, out, err = run_cli("articulation", "fit", p, "--json")
+    assert code == 0, err
+    out.encode("utf-8")     # (a lone surrogate could not be encoded)
+    assert json.loads(out)["file"].endswith("d\\udce9.txt")
+
+
 def test_fit_summary_and_time_column_with_header(tmp_path, run_cli):
     X = _arc()
     t = np.arange(len(X)) * 0.05

@@ -334,7 +334,9 @@ def fit_trajectory(path, time: bool | None = None, threshold: float = 0.75, min_
                         noise_floor=kwargs.get("noise_floor") or 0.0)
     else:
         out = fit_points(traj.points, traj.time, threshold=threshold, min_samples=min_samples, **kwargs)
-    out["file"] = str(path)
+    # (a name's bytes that are not UTF-8 written as \udce9: JSON of a lone surrogate is refused by
+    # strict readers, or the name lost)
+    out["file"] = str(path).encode("utf-8", "backslashreplace").decode("utf-8")
     out["time_column"] = traj.time is not None
     out["units"] = {"length": traj.length_unit, "time": traj.time_unit}   # as the header gave them (converted)
     return out

@@ -46,6 +46,19 @@ def test_fit_json_of_a_file_name_that_is_not_utf8_is_strict_json(tmp_path, run_c
     assert json.loads(out)["file"].endswith("d\\udce9.txt")
 
 
+def test_fit_says_which_line_is_a_sample_far_from_both_neighbours(tmp_path, run_cli):
+    """One sample 1 km off (a corrupt line) decided a door's answer with probability 1.000 and no
+    word said: the note names its line; a clean track has no such note."""
+    X = _arc()
+    clean = _write(tmp_path / "clean.txt", X)
+    X[70, 0] += 1000.0
+    bad = _write(tmp_path / "glitch.txt", X)
+    code, out, err = run_cli("articulation", "fit", bad, "--json")
+    assert code == 0 and "line 71: a sample far from both its neighbours" in json.loads(out)["note"], out
+    code, out, err = run_cli("articulation", "fit", clean)
+    assert code == 0 and "far from both its neighbours" not in out
+
+
 def test_fit_summary_and_time_column_with_header(tmp_path, run_cli):
     X = _arc()
     t = np.arange(len(X)) * 0.05

@@ -148,3 +148,14 @@ def test_missing_gtsam_is_an_input_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "gtsam", None)  # "import gtsam" raises ImportError
     with pytest.raises(InputError, match="pip install 'artmotion\\[slam\\]'"):
         _slam()
+
+
+@pytest.mark.parametrize("landmarks, prismatic, revolute, steps", [(1, 1, 0, 800), (3, 1, 1, 1000), (2, 1, 1, 1000)])
+def test_small_worlds_over_long_runs_do_not_stop_the_graph(run_cli, landmarks, prismatic, revolute, steps):
+    """iSAM2 stopped on an indeterminate system (an internal error): a prismatic landmark's joint
+    offset along its own line only renames its coordinate, and a landmark taken out of the graph
+    left its variables with no factor. Both are held now (README's known limits: one world of ten
+    landmarks, all moving, still stops)."""
+    code, out, err = run_cli("slam", "simulate", "--landmarks", landmarks, "--prismatic", prismatic,
+                             "--revolute", revolute, "--runs", 1, "--steps", steps, "--backends", "graph")
+    assert code == 0 and "Articulated factor graph" in out, err

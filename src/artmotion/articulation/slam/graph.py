@@ -416,6 +416,14 @@ class GraphSlam:
         t.offset = self._key("o")
         self._values.insert(t.offset, np.zeros(2))
         cov = self._cov[:2, :2] + self.models.point_noise**2 / max(len(self._seen.get(i, [])), 1) * np.eye(2)
+        if joint.kind == "prismatic" and joint.direction is not None:
+            # along its line a shift only renames q (a freedom the sightings cannot fix): held at 0
+            # within the point noise, only the shift across the line left to the robot's uncertainty
+            # (with the robot's whole covariance the pair was nearly indeterminate once the robot was
+            # lost, and iSAM2 stopped)
+            u = np.asarray(joint.direction, float) / np.linalg.norm(joint.direction)
+            n = np.array([-u[1], u[0]])
+            cov = self.models.point_noise**2 * np.outer(u, u) + float(n @ cov @ n) * np.outer(n, n)
         self._add(self._gtsam.PriorFactorPoint2(t.offset, np.zeros(2), self._gtsam.noiseModel.Gaussian.Covariance(cov)), t)
         past = self._seen.get(i, [])[:-1] if self.history else []
         if past:
@@ -488,6 +496,16 @@ class GraphSlam:
         t = self.tracks.pop(i)
         assert t.pending == 0, "a landmark leaves the graph only between updates"
         self._remove.extend(t.factors)
+        # iSAM2 keeps a variable whose factors are all removed: a weak prior at its estimate keeps it
+        # determined and tied to nothing else (without, an indeterminate system near it stopped a run)
+        gtsam = self._gtsam
+        weak = gtsam.noiseModel.Isotropic.Sigma(2, 1e3)
+        for key in [k for k in (t.key, t.offset) if k is not None]:
+            self._new.add(gtsam.PriorFactorPoint2(key, self._estimate(key, point=True), weak))
+            self._owners.append(None)
+        for key in t.keys:
+            self._new.add(gtsam.PriorFactorVector(key, self._estimate(key), weak))
+            self._owners.append(None)
         self.strikes.pop(i, None)
         if restart:
             self.models.reset(i)

@@ -235,6 +235,10 @@ def _main(argv: list[str] | None) -> int:
 
     from artmotion._native import quiet_native_logs
 
+    args = sys.argv[1:] if argv is None else argv
+    if (empty := _empty_argument(args)) is not None:     # (before the signal handlers: nothing to restore)
+        return _fail(f"error: {empty} is empty (a file name or a value cannot be: a path option took '' as the "
+                     "current folder)", 2)
     debug = bool(os.environ.get("ARTMOTION_DEBUG"))
     quiet_native_logs()
     previous = {}
@@ -243,11 +247,7 @@ def _main(argv: list[str] | None) -> int:
             previous[sig] = signal.signal(sig, _terminate)
         except ValueError:      # not the main thread (a test runner, an embedding program)
             pass
-    args = sys.argv[1:] if argv is None else argv
     _note_slashed(args)
-    if (empty := _empty_argument(args)) is not None:
-        return _fail(f"error: {empty} is empty (a file name or a value cannot be: a path option took '' as the "
-                     "current folder)", 2)
     stdout = sys.stdout
     if stdout is not None and not isinstance(stdout, _Stdout):
         sys.stdout = _Stdout(stdout)

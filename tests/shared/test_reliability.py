@@ -873,3 +873,7 @@ def test_an_empty_name_or_value_is_refused_before_anything(tmp_path, run_cli, mo
         assert code == 2 and err == f"artmotion: error: {what} (a file name or a value cannot be: a path option " \
                                      "took '' as the current folder)\n", err
     assert list(tmp_path.iterdir()) == []
+    # (refused before the signal handlers are set: none of artmotion's is left behind in the process)
+    import signal
+
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

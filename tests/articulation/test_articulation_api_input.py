@@ -510,16 +510,6 @@ def _segment_cases():
     ]
 
 
-@pytest.mark.parametrize("case", range(len(_segment_cases())))
-def test_video_segmentation_stages_refuse_bad_arguments_by_name(case):
-    # these were bare TypeError / IndexError / AttributeError / ValueError from inside NumPy, or
-    # (a NaN or negative noise level, indices out of range) a silent wrong answer: the camera called
-    # moving, no moving track, no part
-    call, message = _segment_cases()[case]
-    with pytest.raises(InputError, match=message):
-        call()
-
-
 def test_video_segmentation_stages_take_what_numpy_takes():
     # whole-number floats as counts (iters=200.0 passed the check and then failed in range()),
     # negative and whole-number float indices, a seed of None or a Generator, sigma 0 and tol 0
@@ -568,11 +558,14 @@ def _joint_cases():
     ]
 
 
-@pytest.mark.parametrize("case", range(len(_joint_cases())))
-def test_video_joint_stage_refuses_bad_arguments_by_name(case):
-    # bare LinAlgError / AttributeError / IndexError / TypeError before, and a negative or NaN
-    # focal length lifted the part without a word
-    call, message = _joint_cases()[case]
+@pytest.mark.parametrize("stage, case", [("segment", k) for k in range(len(_segment_cases()))]
+                         + [("joint", k) for k in range(len(_joint_cases()))])
+def test_video_stages_refuse_bad_arguments_by_name(stage, case):
+    # segment's were bare TypeError / IndexError / AttributeError / ValueError from inside NumPy,
+    # or (a NaN or negative noise level, indices out of range) a silent wrong answer: the camera
+    # called moving, no moving track, no part; joint's bare LinAlgError / AttributeError /
+    # IndexError / TypeError, and a negative or NaN focal length lifted the part without a word
+    call, message = {"segment": _segment_cases, "joint": _joint_cases}[stage]()[case]
     with pytest.raises(InputError, match=message):
         call()
 

@@ -83,10 +83,10 @@ def track_command(
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
     # (and the sequence's own seqinfo.ini and ground truth: an output over them broke the folder)
-    folder = Path(source) if Path(source).is_dir() else None
-    ini = folder / "seqinfo.ini" if folder is not None else None
+    folder = Path(source)
+    ini = folder / "seqinfo.ini" if folder.is_dir() else None
     check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path, seq.gt_path, ini))
-    if video and folder is not None and seq.video is not None:
+    if video and ini is not None and seq.video is not None:
         from artmotion.io import check_apart
 
         check_apart(video, (folder,))   # (a second video in a sequence folder of one makes it unreadable)

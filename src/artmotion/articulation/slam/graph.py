@@ -500,11 +500,10 @@ class GraphSlam:
         # determined and tied to nothing else (without, an indeterminate system near it stopped a run)
         gtsam = self._gtsam
         weak = gtsam.noiseModel.Isotropic.Sigma(2, 1e3)
-        for key in [k for k in (t.key, t.offset) if k is not None]:
-            self._new.add(gtsam.PriorFactorPoint2(key, self._estimate(key, point=True), weak))
-            self._owners.append(None)
-        for key in t.keys:
-            self._new.add(gtsam.PriorFactorVector(key, self._estimate(key), weak))
+        points = [k for k in (t.key, t.offset) if k is not None]
+        for key, point in [(k, True) for k in points] + [(k, False) for k in t.keys]:
+            prior = gtsam.PriorFactorPoint2 if point else gtsam.PriorFactorVector
+            self._new.add(prior(key, self._estimate(key, point=point), weak))
             self._owners.append(None)
         self.strikes.pop(i, None)
         if restart:

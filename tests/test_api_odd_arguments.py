@@ -82,6 +82,9 @@ def test_index_search_takes_a_path_and_names_what_is_wrong(tmp_path):
     lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).write_dataset(tmp / "d", 2, dark="no"),
     lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).write_dataset(tmp / "d", 2, frames="no"),
     lambda tmp: __import__("artmotion.pose.render", fromlist=["x"]).render_sequence(3, dark="no"),
+    lambda tmp: __import__("artmotion.articulation", fromlist=["x"]).fit_trajectory(tmp / "drawer.log", time="no"),
+    lambda tmp: __import__("artmotion.tracking.metrics", fromlist=["x"]).evaluate(np.ones((1, 6)), np.ones((1, 6)),
+                                                                                   per_alpha="no"),
 ])
 def test_switches_given_text_are_refused(tmp_path, call):
     """"no" is true to Python: each of these left its switch on (annotated video, a writable index
@@ -227,3 +230,84 @@ def test_odd_use_of_fitted_things_is_an_input_error():
         Grounder().speech_to_visual(np.zeros(3), np.zeros(3))
     with pytest.raises(InputError, match="feature dictionary"):
         Grounder().fit({})
+
+
+def test_a_drawer_log_read_with_time_given_as_text_is_refused(tmp_path):
+    """time="no" was true: the first column was read as time and a drawer came out undecided."""
+    from artmotion.articulation import fit_trajectory
+
+    log = tmp_path / "drawer.log"
+    log.write_text("".join(f"{0.01 * i:.2f} 0 0\n" for i in range(12)))
+    assert fit_trajectory(log, time=False)["model"] == "prismatic"
+    with pytest.raises(InputError, match="time must be True or False"):
+        fit_trajectory(log, time="no")
+
+
+def test_pose_predict_return_std_and_zero_feature_columns():
+    """return_std="no" returned the tuple; a matrix of no columns was fitted (predicting the
+    labels' mean for anything)."""
+    from artmotion.pose.model import PoseRegressor
+
+    rng = np.random.default_rng(0)
+    X, y = rng.normal(size=(12, 3)), rng.uniform(0, 1, (12, 1))
+    reg = PoseRegressor().fit(X, y)
+    assert reg.predict(X[:2]).shape == (2, 1)
+    with pytest.raises(InputError, match="return_std must be True or False"):
+        reg.predict(X[:2], return_std="no")
+    with pytest.raises(InputError, match="no columns"):
+        PoseRegressor().fit(np.zeros((12, 0)), y)
+
+
+def test_beliefs_and_likelihoods_must_be_symmetric():
+    """A covariance [[1, 5], [0, 1]] passed (determinant 1) and fused into one that is not
+    positive definite; gaussian_loglik read one triangle of S only."""
+    from artmotion.filters import gaussian_loglik
+    from artmotion.tracking.experts import Gaussian, belief_problem
+    from artmotion.tracking.pote import fuse
+
+    odd = Gaussian([1.0, 0.0], [[1.0, 5.0], [0.0, 1.0]])
+    with pytest.raises(InputError, match="not symmetric"):
+        fuse([odd])
+    assert "not symmetric" in belief_problem(odd)
+    assert belief_problem(Gaussian([1.0, 0.0], [[1.0, 0.2], [0.2, 1.0]])) is None
+    with pytest.raises(InputError, match="mean of 2 numbers"):
+        Gaussian([1.0, 2.0, 3.0], np.eye(2))
+    with pytest.raises(InputError, match="symmetric positive definite"):
+        gaussian_loglik([0.5, 0.1], [[1.0, 0.9], [0.0, 1.0]])
+    with pytest.raises(InputError, match="too far out"):       # (was -inf for m > 1, an error for m = 1)
+        gaussian_loglik(np.array([1e200, 0.0]), np.eye(2))
+    with pytest.raises(InputError, match="must hold 2 values"):
+        gaussian_loglik(np.array([[0.5], [0.1]]), np.eye(2))
+    with pytest.raises(InputError, match="real numbers"):
+        gaussian_loglik(np.array(["0.5", "0.1"]), np.eye(2))
+    with pytest.raises(InputError, match="square covariance"):
+        gaussian_loglik(np.zeros(3), np.zeros((3, 2)))
+    assert gaussian_loglik([0.0, 0.0], np.eye(2)) == pytest.approx(-np.log(2 * np.pi))
+
+
+def test_pose_filter_step_and_views_take_numbers_only():
+    """step() parsed text and dropped an imaginary part (filter() refused both); views and
+    keypoints given as text crashed inside NumPy."""
+    from artmotion.pose.filter import PoseFilter
+    from artmotion.pose.model import check_keypoints, check_views
+
+    for mean, std in ((["10", "20"], ["1", "1"]), (np.array([10 + 5j, 20]), [1, 1])):
+        with pytest.raises(InputError, match="mean must be an array of numbers"):
+            PoseFilter([1.0, 1.0]).step(mean, std)
+    with pytest.raises(InputError, match="std must be an array of numbers"):
+        PoseFilter([1.0, 1.0]).step([10, 20], ["a", "b"])
+    np.testing.assert_allclose(PoseFilter([1.0, 1.0]).step([10, 20], [1, 1])[0], [10, 20])
+    with pytest.raises(InputError, match="views must be an array of numbers"):
+        check_views("abc", 2)
+    with pytest.raises(InputError, match="keypoints must be an array of numbers"):
+        check_keypoints("abc", 2)
+
+
+def test_grounding_features_of_no_dimensions_and_an_unfitted_scaler():
+    from artmotion.language.grounding.sparse import BlockScaler, PairedSparse
+
+    with pytest.raises(InputError, match="no dimensions"):
+        PairedSparse().fit(np.zeros((12, 0)), np.ones((12, 2)))
+    with pytest.raises(InputError, match="BlockScaler is not fitted"):
+        BlockScaler().transform(np.ones((2, 2)))
+    np.testing.assert_allclose(BlockScaler().fit(np.eye(2)).transform(np.eye(2)).sum(axis=0), 0.0, atol=1e-12)

@@ -112,6 +112,26 @@ def test_grounder_both_directions(small_dataset):
     assert words[0] == r["color"]
 
 
+def test_grounder_refuses_images_and_indices_it_cannot_use(small_dataset):
+    """A grey or float image crashed inside OpenCV; an index past the examples inside NumPy."""
+    from artmotion.language.grounding.evaluate import load_features
+    from artmotion.language.grounding.model import Grounder
+
+    F = load_features(small_dataset)
+    n = len(F["colors"])
+    for idx in ([0, 1, n + 5], [], [[0, 1]], [0.5, 1.5]):
+        with pytest.raises(InputError, match="idx must be the indices"):
+            Grounder().fit(F, np.array(idx))
+    g = Grounder().fit(F, np.arange(n) > 0)
+    for image in (np.zeros((64, 64), np.uint8), np.zeros((64, 64, 3))):
+        with pytest.raises(InputError, match="image must be a BGR uint8 image"):
+            g.image_to_speech(image)
+    from artmotion.io.media import read_image
+
+    first = next(csv.DictReader(open(small_dataset / "index.csv")))["image"]
+    assert len(g.image_to_speech(read_image(small_dataset / first))[1]) == 2
+
+
 def _write_index(folder, rows):
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "index.csv", "w", newline="") as fh:

@@ -244,3 +244,20 @@ def test_a_detector_of_your_own_is_held_to_a_detections_file():
             MultiObjectTracker(25.0, 640, 480, config=TrackerConfig(**bad))
     with pytest.raises(InputError, match="config must be a TrackerConfig"):
         MultiObjectTracker(25.0, 640, 480, config={"high": 0.5})
+
+
+def test_a_detector_of_your_own_wins_over_the_sequences_detections(tmp_path, tud_frames):
+    """A MOTChallenge folder (or a video beside det/det.txt) has its own detections; a Detector
+    passed to track() was dropped for them without a word."""
+    _, frames = tud_frames
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    _image_folder(folder / "img1", frames[:6])
+    (folder / "det").mkdir()
+    (folder / "det" / "det.txt").write_text("1,-1,10,10,50,100,0.9,-1,-1,-1\n")
+    truth = _Truth(frames[:6])
+    res = track(folder, fps=25, detector=truth, detect_every=1)
+    assert res.detector == "truth" and truth.seen == [1, 2, 3, 4, 5, 6]
+    assert track(folder, fps=25).detector.endswith("det.txt")
+    with pytest.raises(InputError, match="not both"):
+        track(folder, det=folder / "det" / "det.txt", fps=25, detector=_Truth(frames[:6]))

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from artmotion.articulation.online import MAX_SCALE, MAX_STEP, MIN_STEP, OnlineEstimator
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_bool, check_range
 from artmotion.geometry.rotations import axis_angle_to_matrix
 from artmotion.io.files import as_path, number, read_text
 
@@ -137,6 +137,7 @@ def _is_number(text: str) -> bool:
 
 def read_trajectory(path, time: bool | None = None) -> Trajectory:
     """Parse a trajectory file (see the module doc); raises :class:`InputError` naming the line."""
+    time = check_bool("time", time, none=True)   # ("no" would be true: its first column read as time)
     path = os.fspath(as_path(path, "a trajectory file"))
     text = read_text(path, "a trajectory file")
     rows: list[list[float]] = []

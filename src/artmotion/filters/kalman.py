@@ -164,6 +164,8 @@ def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
     """
     y = np.atleast_1d(y)
     S = np.atleast_2d(S)
+    if y.dtype.kind not in "fiu" or S.dtype.kind not in "fiu":
+        raise InputError(f"gaussian_loglik: y and S must be real numbers, got {y.dtype} and {S.dtype}")
     if S.shape == (1, 1):
         s = float(S[0, 0])
         if y.shape != (1,) or not (0.0 < s < math.inf) or not math.isfinite(y[0]):
@@ -176,6 +178,9 @@ def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
             raise InputError(f"gaussian_loglik: y = {float(y[0]):g} is too far out for variance {s:g} (its "
                              "log-likelihood is beyond the floats)")
         return out
+    if (S.ndim != 2 or S.shape[0] != S.shape[1] or y.shape != S.shape[:1]
+            or np.abs(S - S.T).max() > SYMMETRY_TOL * np.abs(S).max()):
+        _loglik_problem(y, S)     # (Cholesky reads one triangle only: one not symmetric would pass as another)
     try:
         L = np.linalg.cholesky(S)
         z = np.linalg.solve(L, y)
@@ -183,9 +188,12 @@ def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
         _loglik_problem(y, S)
         raise InputError("gaussian_loglik: S must be positive definite (Cholesky failed: singular "
                          "to working precision)") from None
-    zz = z @ z
+    with np.errstate(over="ignore"):
+        zz = z @ z
     if math.isnan(zz):                     # NaN in y (S's would have stopped the Cholesky)
         _loglik_problem(y, S)
+    if math.isinf(zz):                     # (as for one dimension: beyond the floats, not a likelihood)
+        raise InputError("gaussian_loglik: y is too far out for S (its log-likelihood is beyond the floats)")
     return float(-0.5 * (len(y) * _LOG2PI + 2.0 * np.log(np.diag(L)).sum() + zz))
 
 

@@ -180,10 +180,10 @@ class PoseFilter:
 
     def step(self, mean, std) -> tuple[np.ndarray, np.ndarray]:
         """Fuse one frame's GP prediction (mean and std per angle); return the filtered state."""
-        z = np.asarray(mean, dtype=float).ravel()
+        z = float_array(mean, "mean").ravel()     # (text or complex numbers refused, as filter() does)
         if len(z) != len(self.accel_var):
             raise InputError(f"expected {len(self.accel_var)} angles, got {len(z)}")
-        mean, std = self._check(z[None, :], np.asarray(std, dtype=float).reshape(1, -1))
+        mean, std = self._check(z[None, :], float_array(std, "std").reshape(1, -1))
         out, sd = self._step(mean[0], std[0])
         if not (np.all(np.isfinite(out)) and np.all(np.isfinite(sd))):
             self.reset()

@@ -308,7 +308,7 @@ class PoseRegressor(BaseEstimator):
         if views is None:
             if self.uses_views_ and not fitting:
                 raise InputError("this pose model was trained with the boxes' places in their frames: "
-                                 "give the boxes (--boxes) with the crops")
+                                 "give the boxes with the crops (views=, or --boxes)")
             return None
         V = check_views(views, n)
         return V if (self.feature == "cnn" if fitting else self.uses_views_) else None
@@ -409,6 +409,8 @@ class PoseRegressor(BaseEstimator):
                 raise InputError("the feature matrix holds NaN or infinite values")
             if images.size and np.abs(images).max() > _MAX_VALUE:
                 raise InputError(f"the feature matrix holds values beyond ±{_MAX_VALUE:g}")
+            if images.shape[1] == 0:    # (fitted, it would predict the labels' mean for anything)
+                raise InputError("the feature matrix has no columns: at least one feature is needed")
             return True
         if images.ndim == 2 or (images.ndim == 3 and images.shape[2] in (1, 3, 4)):
             raise _one_image(images)
@@ -439,6 +441,7 @@ class PoseRegressor(BaseEstimator):
         gp = self.gp_
         if gp is None or self.names_ is None:
             raise _not_fitted()
+        return_std = check_bool("return_std", return_std)
         batch = check_range("batch", batch, 1, _MAX_COUNT, integer=True)
         images = F.crop_list(images)  # (any iterable of crops: a list, once)
         matrix = self._is_matrix(images)  # (checked once here, not again in every chunk)
@@ -676,7 +679,7 @@ def _check_npz_sizes(path: Path) -> None:
 
 def check_views(views, n: int) -> np.ndarray:
     """``views`` of ``n`` crops checked: ``(n, VIEW_DIM)`` finite numbers (:func:`features.box_views`)."""
-    V = np.asarray(views, dtype=np.float32)
+    V = float_array(views, "views").astype(np.float32)
     if V.shape != (n, F.VIEW_DIM) or not np.all(np.isfinite(V)):
         raise InputError(f"views must be {n}x{F.VIEW_DIM} finite numbers (features.box_views), got {V.shape}")
     return V
@@ -687,7 +690,7 @@ def check_keypoints(keypoints, n: int) -> np.ndarray | None:
     not known (as a whole: x and y both), none infinite or far outside its crop."""
     if keypoints is None:
         return None
-    K = np.asarray(keypoints, dtype=np.float64)
+    K = float_array(keypoints, "keypoints")
     if K.ndim != 2 or len(K) != n or K.shape[1] == 0 or K.shape[1] % 2:
         raise InputError(f"keypoints must be {n} rows of x, y pairs (one row per crop), got shape {K.shape}")
     if np.isinf(K).any():

@@ -483,8 +483,8 @@ RENDERING = frozenset({"crops", "frames", "labels.csv", "keypoints.csv", "boxes.
 def write_dataset(out: str | Path, n: int = 4000, seed: int = 0, dark: bool = False, frames: bool = True,
                   progress: bool = False, motion: str = "script", scenes: int = 1, style: str = "default") -> Path:
     """Render ``n`` poses into ``out``: ``crops/*.png``, ``labels.csv``, ``keypoints.csv`` (the tool's
-    :data:`KEYPOINTS` in pixels of each crop), ``frames/*.jpg``, ``boxes.csv``, ``rendering.json``
-    (the options it was rendered with).
+    :data:`KEYPOINTS` in pixels of each crop), ``frames/*.jpg`` and ``boxes.csv`` (with ``frames``
+    only), ``rendering.json`` (the options it was rendered with).
 
     A new folder (or an earlier rendering in it) appears only when every file is written
     (:func:`artmotion.io.atomic_dir`): a failed or interrupted rendering leaves nothing."""

@@ -171,8 +171,10 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     ``det``: a MOTChallenge detection file; by default the sequence's ``det/det.txt``, else the
     ``detector`` runs: a built-in one by name (:func:`~artmotion.tracking.detectors.make_detector`:
     ``auto``, ``ssdlite`` or ``hog``) or a :class:`~artmotion.tracking.detectors.Detector` of your
-    own. ``detect_every``: run that detector on every k-th frame (and the last) only, the motion model (and the
-    image experts) carrying the boxes in between. ``experts``: names of the tracking experts
+    own, which runs even where the sequence has a ``det/det.txt`` (with ``det`` too: an
+    :class:`~artmotion.errors.InputError`). ``detect_every``: run that detector on every k-th
+    frame (and the last) only, the motion model (and the image experts) carrying the boxes in
+    between. ``experts``: names of the tracking experts
     (registered in :data:`EXPERTS`). ``online``: only causal results (no back-tracking, group
     interpolation or tentative beginnings). ``progress``: a progress bar on stderr.
     ``video``: also write an annotated mp4 there. ``fps``: the frame rate, when the input does not
@@ -189,6 +191,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
         check_detector(detector)
     elif not isinstance(detector, Detector):
         raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
+    elif det is not None:
+        raise InputError("give detections (det) or a detector of your own, not both")
     check_range("--detect-every", detect_every, 1, 100, integer=True)
     if video is not None:
         from artmotion.io.media import cv2_name
@@ -197,7 +201,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     seq = open_sequence(source)
     seq.set_fps(fps, "frame rate")
     seq.set_bits(bits, "bits")
-    det_path = Path(det) if det is not None else seq.det_path
+    # (a detector of the caller's own is what they asked for: it wins over the sequence's det.txt)
+    det_path = Path(det) if det is not None else seq.det_path if isinstance(detector, str) else None
     model = None
     if det_path is not None:
         dets, probabilities = read_detections(det_path)

@@ -55,8 +55,12 @@ class Gaussian:
     cov: np.ndarray
 
     def __post_init__(self):
-        self.mean = np.asarray(self.mean, dtype=float).reshape(2)
-        self.cov = np.asarray(self.cov, dtype=float).reshape(2, 2)
+        try:
+            self.mean = np.asarray(self.mean, dtype=float).reshape(2)
+            self.cov = np.asarray(self.cov, dtype=float).reshape(2, 2)
+        except (TypeError, ValueError):
+            raise InputError(f"a Gaussian over a box centre needs a mean of 2 numbers and a 2x2 covariance, got "
+                             f"mean {self.mean!r}, cov {self.cov!r}") from None
 
 
 def box_gaussian(box, scale: float = 1.0) -> Gaussian:
@@ -86,8 +90,9 @@ def belief_problem(g) -> str | None:
         return f"a mean that is not finite ({g.mean[0]:g}, {g.mean[1]:g})"
     c = g.cov
     det = c[0, 0] * c[1, 1] - c[0, 1] * c[1, 0]
-    if not (0.0 < det < np.inf and c[0, 0] > 0 and np.isfinite(c).all()):
-        return ("a covariance that is not finite and positive definite "
+    if not (0.0 < det < np.inf and c[0, 0] > 0 and np.isfinite(c).all()
+            and abs(c[0, 1] - c[1, 0]) <= 1e-9 * (c[0, 0] + c[1, 1])):
+        return ("a covariance that is not finite and positive definite (or not symmetric) "
                 f"[[{c[0, 0]:g}, {c[0, 1]:g}], [{c[1, 0]:g}, {c[1, 1]:g}]]")
     return None
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from artmotion.errors import InputError, check_range
+from artmotion.errors import InputError, check_bool, check_range
 from artmotion.geometry import iou_matrix
 from artmotion.io import read_mot
 from artmotion.io.mot import MOT17_CLASSES, MOT17_PEDESTRIAN, check_ids, check_mot_rows, mot_columns
@@ -376,6 +376,7 @@ def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False, rules
     Raises :class:`~artmotion.errors.InputError` for unreadable or inconsistent input.
     """
     thr = _threshold(iou_threshold)
+    per_alpha = check_bool("per_alpha", per_alpha)
     return _scores(*_load_pair(gt, res, rules), thr, per_alpha)
 
 

@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import read_image
+from artmotion.io.media import check_frame, read_image
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse
 
@@ -25,7 +25,13 @@ class Grounder:
         need = ("colors", "shapes", "color", "shape", "audio_seg")
         if not isinstance(F, dict) or any(k not in F for k in need):
             raise InputError(f"fit needs the feature dictionary of load_features (keys {', '.join(need)})")
-        idx = np.arange(len(F["colors"])) if idx is None else np.asarray(idx)
+        n = len(F["colors"])
+        idx = np.arange(n) if idx is None else np.asarray(idx)
+        if idx.dtype == bool and idx.shape == (n,):
+            idx = np.flatnonzero(idx)
+        if idx.ndim != 1 or idx.dtype.kind not in "iu" or not idx.size or (idx < -n).any() or (idx >= n).any():
+            raise InputError(f"idx must be the indices of the examples to fit on (whole numbers in [0, {n}), at least "
+                             f"one) or a mask of {n} booleans")
         self.model_ = CompositionalSparse(seed=self.seed).fit(
             [F["color"][idx], F["shape"][idx]], [a[idx] for a in F["audio_seg"]]
         )
@@ -53,7 +59,11 @@ class Grounder:
     def image_to_speech(self, image: str | os.PathLike | np.ndarray) -> tuple[list[np.ndarray], list[str]]:
         """Audio features generated for each word segment, and the nearest known word of each."""
         self._check_fitted()
-        img = read_image(image) if not isinstance(image, np.ndarray) else image
+        if isinstance(image, np.ndarray):
+            check_frame(image, "image")
+            img = image
+        else:
+            img = read_image(image)
         c, s = visual_features(img, where=None if isinstance(image, np.ndarray) else str(image))
         segs = [g[0] for g in self.model_.visual_to_audio([c[None], s[None]])]
         words = []

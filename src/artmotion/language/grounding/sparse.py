@@ -44,6 +44,8 @@ def _features(name: str, X, dim: int | None = None) -> np.ndarray:
     X = np.atleast_2d(float_array(X, f"{name} features"))
     if X.ndim != 2:
         raise InputError(f"{name} features must be an (examples, dimensions) array, got shape {X.shape}")
+    if X.shape[1] == 0:
+        raise InputError(f"{name} features have no dimensions: at least one is needed")
     if dim is not None and X.shape[1] != dim:
         raise InputError(f"{name} features must have {dim} dimensions (as in training), got {X.shape[1]}")
     if not np.all(np.isfinite(X)):
@@ -104,10 +106,16 @@ class BlockScaler:
         return self
 
     def transform(self, X: np.ndarray) -> np.ndarray:
+        self._check_fitted()
         return (np.asarray(X, dtype=float) - self.mean_) / self.scale_
 
     def inverse(self, Z: np.ndarray) -> np.ndarray:
+        self._check_fitted()
         return np.asarray(Z, dtype=float) * self.scale_ + self.mean_
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "mean_"):
+            raise _not_fitted("BlockScaler")
 
 
 class PairedSparse(BaseEstimator):

@@ -311,3 +311,28 @@ def test_grounding_features_of_no_dimensions_and_an_unfitted_scaler():
     with pytest.raises(InputError, match="BlockScaler is not fitted"):
         BlockScaler().transform(np.ones((2, 2)))
     np.testing.assert_allclose(BlockScaler().fit(np.eye(2)).transform(np.eye(2)).sum(axis=0), 0.0, atol=1e-12)
+
+
+def test_box_helpers_refuse_rows_that_are_not_boxes():
+    """A MOTChallenge row (10 columns) was read as the box frame, id, x, y (box_area 5000, iou 1);
+    a box of 3 numbers was broadcast; clip_box with no width did not clip; fit_size took a
+    negative width."""
+    from artmotion.geometry import box_area, box_center, box_from_center, clip_box, fit_size, intersection, iou
+
+    mot = np.array([[1, 7, 100.0, 50, 20, 40, 0.9, -1, -1, -1]])
+    for call in (lambda: box_area(mot), lambda: iou(mot, mot), lambda: box_center([[0, 0, 10]]),
+                 lambda: intersection(mot, mot), lambda: box_from_center([1, 2, 3], [4, 5])):
+        with pytest.raises(InputError, match="shape"):
+            call()
+    with pytest.raises(InputError, match="must be numbers"):
+        box_area(["a", "b", "c", "d"])
+    for w, h in ((None, 480), (np.nan, 480), (640, -1)):
+        with pytest.raises(InputError, match="clip_box"):
+            clip_box([700, 0, 10, 10], w, h)
+    for args in ((-640, 480, 320, 240), (np.nan, 480, 320, 240), (640, 480, 0, 240)):
+        with pytest.raises(InputError, match="fit_size"):
+            fit_size(*args)
+    np.testing.assert_allclose(clip_box([600, -5, 100, 20], 640, 480), [600, 0, 40, 15])
+    assert fit_size(640, 480, 320, 240) == (0.5, (320, 240))
+    assert box_area(np.zeros((0, 4))).shape == (0,) and box_area(np.zeros(0)).shape == (0,)
+    assert iou([0, 0, 10, 10], [0, 0, 10, 10]) == 1.0

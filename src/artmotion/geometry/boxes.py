@@ -12,24 +12,42 @@ import numpy as np
 from artmotion.errors import InputError
 
 
+def _boxes(b, name: str) -> np.ndarray:
+    """``b`` as a float array of boxes, ``(4,)`` or ``(..., 4)``, else an :class:`InputError` (a
+    MOTChallenge row of 10 columns would be read as the box ``frame, id, x, y``). The shape only:
+    these run per box in the tracker's loop (:func:`iou_matrix` checks values as well)."""
+    try:
+        b = np.asarray(b, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: boxes must be numbers x, y, w, h") from None
+    if b.shape[-1:] != (4,):
+        if not b.size:          # (no boxes at all)
+            return b.reshape(0, 4)
+        raise InputError(f"{name}: boxes must have shape (4,) or (..., 4): x, y, w, h, got shape {b.shape}")
+    return b
+
+
 def xywh_to_xyxy(b) -> np.ndarray:
-    b = np.asarray(b, dtype=float)
+    b = _boxes(b, "xywh_to_xyxy")
     return np.concatenate([b[..., :2], b[..., :2] + b[..., 2:4]], axis=-1)
 
 
 def xyxy_to_xywh(b) -> np.ndarray:
-    b = np.asarray(b, dtype=float)
+    b = _boxes(b, "xyxy_to_xywh")
     return np.concatenate([b[..., :2], b[..., 2:4] - b[..., :2]], axis=-1)
 
 
 def box_center(b) -> np.ndarray:
-    b = np.asarray(b, dtype=float)
+    b = _boxes(b, "box_center")
     return b[..., :2] + 0.5 * b[..., 2:4]
 
 
 def box_from_center(center, size) -> np.ndarray:
     c = np.asarray(center, dtype=float)
     s = np.asarray(size, dtype=float)
+    if c.shape[-1:] != (2,) or s.shape[-1:] != (2,):
+        raise InputError(f"box_from_center: centres and sizes must have shape (2,) or (..., 2), got {c.shape} "
+                         f"and {s.shape}")
     return np.concatenate([c - 0.5 * s, s], axis=-1)
 
 
@@ -38,15 +56,15 @@ def box_area(b) -> np.ndarray:
     arithmetic of :func:`intersection`, so that a box's IoU with itself is exactly 1 (from ``w h``,
     822 of PETS09-S2L1's 1700 ground-truth boxes gave 1 - 6e-15, and ``eval --iou 1`` scored a
     result identical to the ground truth MOTA 3.3); TrackEval computes it so."""
-    b = np.asarray(b, dtype=float)
+    b = _boxes(b, "box_area")
     return (np.maximum((b[..., 0] + b[..., 2]) - b[..., 0], 0.0)
             * np.maximum((b[..., 1] + b[..., 3]) - b[..., 1], 0.0))
 
 
 def intersection(a, b) -> np.ndarray:
     """Area of the intersection of boxes ``a`` and ``b`` (broadcasting)."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
+    a = _boxes(a, "intersection")
+    b = _boxes(b, "intersection")
     ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
     w = np.minimum(ax + a[..., 2], bx + b[..., 2]) - np.maximum(ax, bx)
     h = np.minimum(ay + a[..., 3], by + b[..., 3]) - np.maximum(ay, by)
@@ -151,12 +169,18 @@ def union_box(boxes) -> np.ndarray:
 def fit_size(width: int, height: int, max_width: float, max_height: float) -> tuple[float, tuple[int, int]]:
     """The scale (at most 1) that fits an image of ``width`` x ``height`` within ``max_width`` x
     ``max_height``, and the scaled size, at least 1 pixel a side."""
+    for name, v in (("width", width), ("height", height), ("max_width", max_width), ("max_height", max_height)):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and 0 < v < math.inf):
+            raise InputError(f"fit_size: {name} must be a positive finite number, got {v!r}")
     scale = min(1.0, max_width / width, max_height / height)
     return scale, (max(1, round(width * scale)), max(1, round(height * scale)))
 
 
 def clip_box(b, width: float, height: float) -> np.ndarray:
     """Clip boxes to the image ``[0, width] x [0, height]``."""
+    for name, v in (("width", width), ("height", height)):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and 0 <= v < math.inf):
+            raise InputError(f"clip_box: {name} must be a finite number >= 0, got {v!r}")
     xyxy = xywh_to_xyxy(b)
     xyxy[..., [0, 2]] = np.clip(xyxy[..., [0, 2]], 0, width)
     xyxy[..., [1, 3]] = np.clip(xyxy[..., [1, 3]], 0, height)

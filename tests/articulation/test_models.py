@@ -145,3 +145,98 @@ def test_point_models_refuse_bad_points_and_predict_before_fit(cls):
 def test_make_model_refuses_unknown_names():
     with pytest.raises(InputError, match="unknown point model"):
         make_model("foo")
+
+
+# -- a configuration given to a model's constructor is checked as a fit's points are: a NaN centre was
+#    predicted as NaN, a 5-number centre silently cut to 3, a radius of -1 or "1" taken (a mirrored
+#    circle; a UFuncTypeError at predict), an infinite direction gave NaN predictions
+@pytest.mark.parametrize("make, what", [
+    (lambda: StaticModel(centre=[np.nan, 0, 0]), r"centre must be finite numbers, got \[nan, 0.0, 0.0\]"),
+    (lambda: StaticModel(centre=[1, 2, 3, 4, 5]),
+     r"centre must be 2 or 3 numbers \(an array of shape \(2,\) or \(3,\)\), got shape \(5,\)"),
+    (lambda: StaticModel(centre=[[1, 2, 3]]), r"centre must be 2 or 3 numbers .* got shape \(1, 3\)"),
+    (lambda: StaticModel(centre=5.0), r"centre must be 2 or 3 numbers .* got shape \(\)"),
+    (lambda: StaticModel(centre=["1", "2", "3"]), "centre must be an array of numbers"),
+    (lambda: StaticModel(centre=[1e200, 0, 0]), "centre must be numbers of magnitude at most 1e\\+100"),
+    (lambda: PrismaticModel(origin=[0, 0, 0], direction=[np.inf, 0, 0]), r"direction must be finite numbers"),
+    (lambda: PrismaticModel(origin=[0, 0, np.nan], direction=[1, 0, 0]), r"origin must be finite numbers"),
+    (lambda: PrismaticModel(origin=[0, 0], direction=[1, 0, 0]), r"direction must have as many numbers as origin \(2\), got 3"),
+    (lambda: PrismaticModel(origin=[0, 0, 0, 0], direction=[1, 0, 0]), r"origin must be 2 or 3 numbers"),
+    (lambda: PrismaticModel(origin=[0, 0, 0], direction="x"), "direction must be an array of numbers"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=-1.0, u=[1, 0, 0]),
+     r"radius must be a number in \(0, 1e\+100\], got -1"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=0.0, u=[1, 0, 0]), "radius must be a number in"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=np.nan, u=[1, 0, 0]), "radius must be a number in"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=np.inf, u=[1, 0, 0]), "radius must be a number in"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius="1", u=[1, 0, 0]), r"radius must be a number in .* got '1'"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=True, u=[1, 0, 0]), "radius must be a number in"),
+    (lambda: RevoluteModel(centre=[0, 0], axis=[0, 0, 1], radius=1.0, u=[1, 0, 0]),
+     r"centre must be 3 numbers \(an array of shape \(3,\)\), got shape \(2,\)"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1, 0], radius=1.0, u=[1, 0, 0]), "axis must be 3 numbers"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=[1, np.nan, 0]), "u must be finite numbers"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=[0, 0, -2]), "u must not be parallel to the axis"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=[1e-9, 0, 1]), "u must not be parallel to the axis"),
+    (lambda: RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=[0, 0, 0]),
+     "u must be a direction, not a zero vector"),
+    (lambda: RevoluteModel(planar_axis=[0, 0, 0]), "planar_axis must be a direction, not a zero vector"),
+    (lambda: RevoluteModel(planar_axis=[0, 0, np.inf]), "planar_axis must be finite numbers"),
+    (lambda: PlanarModel(origin=[0, 0, 0], normal=[0, 0, 0]), "normal must be a direction, not a zero vector"),
+    (lambda: PlanarModel(origin=[0, 0], normal=[0, 0, 1]), r"origin must be 3 numbers"),
+    (lambda: PlanarModel(origin=[0, 0, 0], normal=[np.nan, 0, 1]), "normal must be finite numbers"),
+    (lambda: PlanarModel(planar_axis=[1, 2]), "planar_axis must be 3 numbers"),
+])
+def test_model_constructors_refuse_a_bad_configuration(make, what):
+    with pytest.raises(InputError, match=what):
+        make()
+
+
+def test_revolute_constructor_projects_u_into_the_circle_plane():
+    """u = (1, 0, 1) about the z axis predicted an ellipse (|p| = 1, 0.707, 1): its part along the
+    axis is dropped, as fit does, and the points lie on the circle of the radius given."""
+    m = RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=[1, 0, 1])
+    assert np.allclose(m.u, [1, 0, 0]) and np.allclose(m.v, [0, 1, 0])
+    q = np.linspace(0, 2 * np.pi, 9)
+    P = m.predict(q)
+    assert np.allclose(np.linalg.norm(P, axis=1), 1.0) and np.allclose(P[:, 2], 0.0)
+    assert np.allclose(m.motion(P)[:, 0], q)
+    m2 = RevoluteModel(centre=[1, 2, 3], axis=[0, 0, 2], radius=2, u=[0, 3, -5])  # scaled, slanted u
+    assert np.allclose(m2.u, [0, 1, 0]) and np.allclose(m2.axis, [0, 0, 1]) and m2.radius == 2.0
+    assert np.allclose(np.linalg.norm(m2.predict(q) - [1, 2, 3], axis=1), 2.0)
+    # a perpendicular u is kept as given (the valid case runs as before)
+    u = np.array([3.0, 4.0, 0.0]) / 5.0
+    assert np.array_equal(RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=1.0, u=u).u, u)
+
+
+def test_an_unconfigured_revolute_model_says_it_is_not_fitted():
+    """``RevoluteModel().v`` was a TypeError ('NoneType' object is not subscriptable); predict1 of a
+    model given no radius a TypeError from the arithmetic."""
+    with pytest.raises(InputError, match="revolute model is not fitted"):
+        _ = RevoluteModel().v
+    with pytest.raises(InputError, match="revolute model is not fitted"):
+        _ = RevoluteModel(axis=[0, 0, 1]).v
+    partial = RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], u=[1, 0, 0])  # no radius
+    for call in (partial.predict1, partial.jacobian1, partial.predict, partial.jacobian):
+        with pytest.raises(InputError, match="revolute model is not fitted"):
+            call(0.3)
+    with pytest.raises(InputError, match="revolute model is not fitted"):
+        RevoluteModel(centre=[0, 0, 0], radius=1.0, u=[1, 0, 0]).predict1(0.3)  # no axis
+    # once fitted, v is there
+    th = np.linspace(0.0, 1.5, 20)
+    X = np.column_stack([np.cos(th), np.sin(th), np.zeros(20)])
+    m = RevoluteModel()
+    m.fit(X)
+    assert np.allclose(np.abs(m.v @ [0, 0, 1]), 0.0) and np.isclose(np.linalg.norm(m.v), 1.0)
+
+
+def test_valid_given_configurations_run_as_before():
+    """Guards: 2-D configurations of the models that take 2-D points, NumPy scalars and ints, a
+    whole-number radius."""
+    assert StaticModel(centre=[1, 2]).predict(np.zeros((2, 0))).tolist() == [[1.0, 2.0], [1.0, 2.0]]
+    assert StaticModel(centre=[1, 2, 3]).configuration() == {"centre": [1.0, 2.0, 3.0]}
+    assert np.allclose(PrismaticModel(origin=[0, 0], direction=[0, 2]).predict([1.5]), [[0, 1.5]])
+    m = RevoluteModel(centre=np.zeros(3), axis=np.array([0, 0, 1]), radius=np.float64(2), u=[1, 0, 0])
+    assert m.radius == 2.0 and np.allclose(m.predict1(np.pi / 2), [0, 2, 0])
+    assert RevoluteModel(centre=[0, 0, 0], axis=[0, 0, 1], radius=3, u=[0, 1, 0]).configuration()["radius"] == 3.0
+    pm = PlanarModel(origin=[0, 0, 0], normal=[0, 0, 5])
+    assert np.allclose(pm.normal, [0, 0, 1]) and np.allclose(pm.predict([[1.0, 2.0]])[0, 2], 0.0)
+    assert np.array_equal(RevoluteModel(planar_axis=[0, 0, 2]).planar_axis, [0, 0, 2])  # kept as given

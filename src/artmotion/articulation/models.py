@@ -64,20 +64,37 @@ def _unit(v) -> np.ndarray:
     return v / n if n > 0 else v
 
 
-def _given_unit(value, name: str) -> np.ndarray:
-    """A direction given to a model's constructor, as a unit vector; a zero one (no direction: a
-    line along it predicted its origin for every q) is an :class:`InputError`."""
-    v = _given(value, name)
+def _given(value, name: str, sizes: tuple[int, ...] = (3,)) -> np.ndarray | None:
+    """An array given to a model's constructor as a float array of its own (a copy: the caller's
+    array may change afterwards), or None: ``n`` finite numbers (``n`` in ``sizes``) of magnitude
+    at most :data:`MAX_COORD` (as the points a fit takes), else an :class:`InputError` naming ``name``."""
+    if value is None:
+        return None
+    v = float_array(value, name)
+    if v.ndim != 1 or v.shape[0] not in sizes:
+        want = " or ".join(map(str, sizes))
+        raise InputError(f"{name} must be {want} numbers (an array of shape "
+                         f"{' or '.join(f'({n},)' for n in sizes)}), got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{name} must be finite numbers, got {v.tolist()}")
+    if v.size and float(np.abs(v).max()) > MAX_COORD:
+        raise InputError(f"{name} must be numbers of magnitude at most {MAX_COORD:g}")
+    return v.copy()
+
+
+def _given_direction(value, name: str, sizes: tuple[int, ...] = (3,)) -> np.ndarray:
+    """A direction given to a model's constructor (:func:`_given`, as given: not scaled); a zero one
+    (no direction: a line along it predicted its origin for every q) is an :class:`InputError`."""
+    v = _given(value, name, sizes)
     assert v is not None
     if not np.linalg.norm(v) > 0:
-        raise InputError(f"{name} must be a direction, not a zero vector")
-    return _unit(v)
+        raise InputError(f"{name} must be a direction, not a zero vector (or one too short to scale to unit length)")
+    return v
 
 
-def _given(value, name: str) -> np.ndarray | None:
-    """An array given to a model's constructor as a float array of its own (a copy: the caller's
-    array may change afterwards), or None."""
-    return None if value is None else float_array(value, name).copy()
+def _given_unit(value, name: str, sizes: tuple[int, ...] = (3,)) -> np.ndarray:
+    """A direction given to a model's constructor, as a unit vector (see :func:`_given_direction`)."""
+    return _unit(_given_direction(value, name, sizes))
 
 
 def _cross3(a, b) -> np.ndarray:
@@ -390,7 +407,7 @@ class StaticModel(PointModel):
     dims = (2, 3)
 
     def __init__(self, centre=None):
-        self.centre = _given(centre, "centre")
+        self.centre = _given(centre, "centre", (2, 3))  # (2-D points: a 2-D centre, as fit gives)
 
     def fit(self, X, weights=None):
         X, weights = self._fit_input(X, weights)
@@ -424,8 +441,11 @@ class PrismaticModel(PointModel):
     dims = (2, 3)
 
     def __init__(self, origin=None, direction=None):
-        self.origin = _given(origin, "origin")
-        self.direction = None if direction is None else _given_unit(direction, "direction")
+        self.origin = _given(origin, "origin", (2, 3))
+        self.direction = None if direction is None else _given_unit(direction, "direction", (2, 3))
+        if self.origin is not None and self.direction is not None and len(self.direction) != len(self.origin):
+            raise InputError(f"direction must have as many numbers as origin ({len(self.origin)}), "
+                             f"got {len(self.direction)}")
 
     def fit(self, X, weights=None):
         X, weights = self._fit_input(X, weights)
@@ -488,13 +508,27 @@ class RevoluteModel(PointModel):
     def __init__(self, centre=None, axis=None, radius=None, u=None, planar_axis=None):
         self.centre = _given(centre, "centre")
         self.axis = None if axis is None else _given_unit(axis, "axis")
-        self.radius = radius
+        self.radius = None if radius is None else float(
+            check_range("radius", radius, 0.0, MAX_COORD, lo_open=True))
         self.u = None if u is None else _given_unit(u, "u")
-        self.planar_axis = _given(planar_axis, "planar_axis")  # fixed plane normal (2-D data), or None to estimate
+        if self.u is not None and self.axis is not None:
+            # u spans the circle's plane with v = axis x u: its part along the axis is dropped (as fit
+            # does), else the points predicted lay on an ellipse; along the axis it spans nothing
+            along = float(self.u @ self.axis)
+            if along != 0.0:
+                perp = self.u - along * self.axis
+                if not np.linalg.norm(perp) > 1e-6:  # (nearly) parallel: no direction in the plane
+                    raise InputError("u must not be parallel to the axis: it gives the direction of angle 0 "
+                                     "in the circle's plane, perpendicular to the axis")
+                self.u = _unit(perp)
+        # fixed plane normal (2-D data), or None to estimate
+        self.planar_axis = None if planar_axis is None else _given_direction(planar_axis, "planar_axis")
 
     @property
     def v(self):
         if getattr(self, "_v", None) is None:
+            if self.axis is None or self.u is None:
+                raise self._not_fitted()
             self._v = _cross3(self.axis, self.u)
         return self._v
 
@@ -553,13 +587,14 @@ class RevoluteModel(PointModel):
         return (self.radius * (-math.sin(q) * self.u + math.cos(q) * self.v)).reshape(3, 1)
 
     def predict1(self, q: float) -> np.ndarray:
-        if self.u is None or self.centre is None:
+        if not self._fitted():
             raise self._not_fitted()
+        assert self.u is not None and self.centre is not None and self.radius is not None  # fitted
         q = self._scalar_motion(q)
         return self.centre + (self.radius * math.cos(q)) * self.u + (self.radius * math.sin(q)) * self.v
 
     def jacobian1(self, q: float) -> np.ndarray:
-        if self.u is None:
+        if self.u is None or self.axis is None or self.radius is None:
             raise self._not_fitted()
         q = self._scalar_motion(q)
         return (-self.radius * math.sin(q)) * self.u + (self.radius * math.cos(q)) * self.v
@@ -567,7 +602,7 @@ class RevoluteModel(PointModel):
     def configuration(self, dim=3):
         if not self._fitted():
             raise self._not_fitted()
-        assert self.centre is not None and self.axis is not None
+        assert self.centre is not None and self.axis is not None and self.radius is not None
         out = {"centre": self.centre[:dim].tolist(), "radius": float(self.radius)}
         out["axis"] = self.axis.tolist()
         return out
@@ -584,7 +619,7 @@ class PlanarModel(PointModel):
     def __init__(self, origin=None, normal=None, planar_axis=None):
         self.origin = _given(origin, "origin")
         self.normal = None if normal is None else _given_unit(normal, "normal")
-        self.planar_axis = _given(planar_axis, "planar_axis")
+        self.planar_axis = None if planar_axis is None else _given_direction(planar_axis, "planar_axis")
         if self.normal is not None:
             self.u, self.v = _orthonormal_to(self.normal)
 

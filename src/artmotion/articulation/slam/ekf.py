@@ -32,8 +32,58 @@ def _wrap(a):
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
+#: largest magnitude of a number the public helpers below take (a pose's, a control's, a time
+#: step's, a noise coefficient's): their products then stay finite floats
+MAX_VALUE = 1e100
+
+
+def _vector(value, name: str, size: int, what: str, nonneg: bool = False):
+    """``value`` if it is ``size`` finite numbers of magnitude at most :data:`MAX_VALUE` (``nonneg``:
+    and >= 0; ``what`` says what they are), else an :class:`InputError` naming ``name`` and the shape
+    wanted. The public helpers' check (the filter's per-step path calls the unchecked ones): a float
+    array or a list or tuple of floats is returned as it is (the arithmetic is that of the unchecked
+    helpers on it), anything else as a new float array."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
+        a, vals = value, value.tolist()
+    elif type(value) in (list, tuple) and len(value) == size and all(type(e) is float for e in value):
+        a, vals = value, value
+    else:
+        try:
+            a = float_array(value, name)
+        except InputError:
+            raise InputError(f"{name} must be {what}, got {reprlib.repr(value)}") from None
+        if a.shape != (size,):
+            raise InputError(f"{name} must be {what}: an array of shape ({size},), got shape {a.shape}")
+        vals = a.tolist()
+    lo = 0.0 if nonneg else -MAX_VALUE
+    for e in vals:
+        if not lo <= e <= MAX_VALUE:  # (False for NaN)
+            raise InputError(f"{name} must be {what}, finite and of magnitude at most {MAX_VALUE:g}, "
+                             f"got {reprlib.repr(value)}")
+    return a
+
+
+def _pose(x):
+    return _vector(x, "x", 3, "a pose, 3 numbers (x, y, theta)")
+
+
+def _control(u):
+    return _vector(u, "u", 2, "a control, 2 numbers (v, omega)")
+
+
 def motion_model(x: np.ndarray, u, dt: float):
-    """Eq. 4.20 (4.21 when ``omega ~ 0``): next pose, ``J_x`` (Eq. 4.25) and ``J_u`` (Eq. 4.26)."""
+    """Eq. 4.20 (4.21 when ``omega ~ 0``): next pose, ``J_x`` (Eq. 4.25) and ``J_u`` (Eq. 4.26) from
+    pose ``x = (x, y, theta)``, control ``u = (v, omega)`` and time step ``dt > 0`` (numbers of
+    magnitude at most :data:`MAX_VALUE`; else an :class:`InputError`)."""
+    x = _pose(x)
+    u = _control(u)
+    if not (type(dt) is float and 0.0 < dt <= MAX_VALUE):  # (the common case, at once)
+        dt = check_range("dt", dt, 0.0, MAX_VALUE, lo_open=True)
+    return _motion_model(x, u, dt)
+
+
+def _motion_model(x, u, dt: float):
+    """:func:`motion_model` of checked arguments (the filter's per-step path)."""
     px, py, th = x
     v, w = u
     if abs(w) < 1e-9:
@@ -57,14 +107,36 @@ def motion_model(x: np.ndarray, u, dt: float):
 
 
 def control_noise(u, alphas) -> np.ndarray:
-    """``M_k`` of Eq. 4.23."""
+    """``M_k`` of Eq. 4.23 for control ``u = (v, omega)`` and noise coefficients ``alphas`` (4 numbers
+    >= 0); an :class:`InputError` unless they are finite numbers of magnitude at most :data:`MAX_VALUE`."""
+    u = _control(u)
+    alphas = _vector(alphas, "alphas", 4, "4 numbers >= 0 (the control noise of Eq. 4.23)", nonneg=True)
+    return _control_noise(u, alphas)
+
+
+def _control_noise(u, alphas) -> np.ndarray:
+    """:func:`control_noise` of checked arguments (the filter's per-step path)."""
     v, w = u
     a1, a2, a3, a4 = alphas
     return np.diag([a1 * v * v + a2 * w * w, a3 * v * v + a4 * w * w])
 
 
 def observe(x: np.ndarray, m: np.ndarray):
-    """Eq. 4.24 and its Jacobians: ``z = (range, bearing)``, ``J_x`` (Eq. 4.27), ``J_m`` (Eq. 4.28)."""
+    """Eq. 4.24 and its Jacobians: ``z = (range, bearing)``, ``J_x`` (Eq. 4.27), ``J_m`` (Eq. 4.28) of
+    landmark ``m = (m_x, m_y)`` seen from pose ``x = (x, y, theta)``; an :class:`InputError` unless
+    they are finite numbers of magnitude at most :data:`MAX_VALUE` and ``m`` lies away from the
+    pose (at range 0 the bearing and the Jacobians are undefined)."""
+    x = _pose(x)
+    m = _vector(m, "m", 2, "a landmark position, 2 numbers (m_x, m_y)")
+    dx, dy = float(m[0] - x[0]), float(m[1] - x[1])
+    if not dx * dx + dy * dy > 0.0:
+        raise InputError(f"m must lie away from the pose x, got range {math.hypot(dx, dy):g}: at range 0 (or one "
+                         "whose square is 0 in floats) the bearing and the Jacobians are undefined")
+    return _observe(x, m)
+
+
+def _observe(x: np.ndarray, m: np.ndarray):
+    """:func:`observe` of checked arguments (the filter's per-step path)."""
     dx, dy = m[0] - x[0], m[1] - x[1]
     q = dx * dx + dy * dy
     sq = math.sqrt(q)
@@ -76,7 +148,17 @@ def observe(x: np.ndarray, m: np.ndarray):
 
 def inverse_observation(x: np.ndarray, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eq. 4.24 inverted: the world point ``m`` that sighting ``z = (range, bearing)`` from pose ``x``
-    sees, and its Jacobians w.r.t. the pose (2 x 3) and the sighting (2 x 2)."""
+    sees, and its Jacobians w.r.t. the pose (2 x 3) and the sighting (2 x 2). An :class:`InputError`
+    unless they are finite numbers of magnitude at most :data:`MAX_VALUE` and the range is >= 0."""
+    x = _pose(x)
+    z = _vector(z, "z", 2, "a sighting, 2 numbers (range, bearing)")
+    if not z[0] >= 0.0:
+        raise InputError(f"z's range must be >= 0 (a distance), got {float(z[0]):g}")
+    return _inverse_observation(x, z)
+
+
+def _inverse_observation(x: np.ndarray, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`inverse_observation` of checked arguments (the filter's per-step path)."""
     a = x[2] + z[1]
     c, s = math.cos(a), math.sin(a)
     m = np.array([x[0] + z[0] * c, x[1] + z[0] * s])
@@ -289,12 +371,12 @@ class EKFSlam:
         u = _check_control(u)
         n = self.n
         mu, P = self.mu, self.P
-        xn, Gx, Gu = motion_model(mu[:3], u, self.dt)
+        xn, Gx, Gu = _motion_model(mu[:3], u, self.dt)
         mu[:3] = xn
         mu[2] = _wrap(mu[2])
         P[:3, :n] = Gx @ P[:3, :n]
         P[:n, :3] = P[:n, :3] @ Gx.T
-        P[:3, :3] += Gu @ control_noise(u, self.alphas) @ Gu.T
+        P[:3, :3] += Gu @ _control_noise(u, self.alphas) @ Gu.T
         for i, b in self.blocks.items():
             sl = slice(b.start, b.start + b.dim)
             if b.F is not None and b.Q is not None:
@@ -332,7 +414,7 @@ class EKFSlam:
         """Algorithm 1 on sighting ``z`` of undecided landmark ``i``; once it decides a model other
         than the one ``i`` has in the state, ``i`` is re-initialised from ``z`` with it and True is
         returned."""
-        m, Gx, Gz = inverse_observation(self.mu[:3], z)
+        m, Gx, Gz = _inverse_observation(self.mu[:3], z)
         Pm = Gz @ self.R1 @ Gz.T
         d = self.models.observe(i, m, Pm, self.k)
         b = self.blocks.get(i)
@@ -355,7 +437,7 @@ class EKFSlam:
             b = self.blocks[i]
             sl = slice(b.start, b.start + b.dim)
             pos, Jq = b.position(mu[sl])
-            zh, Hx, Hm = observe(mu[:3], pos)
+            zh, Hx, Hm = _observe(mu[:3], pos)
             Hi = np.zeros((2, n))
             Hi[:, :3] = Hx
             Hi[:, sl] = Hm @ Jq
@@ -427,7 +509,7 @@ class EKFSlam:
         self.decided_at[i] = self.k
 
     def _add_static(self, i, z):
-        m, Gx, Gz = inverse_observation(self.mu[:3], z)
+        m, Gx, Gz = _inverse_observation(self.mu[:3], z)
         self._append(i, _Block("static", self.n, 2), m, Gx, Gz @ self.R1 @ Gz.T)
 
     def _add_moving(self, i, d: Decision, Gx, Pm):

@@ -33,12 +33,12 @@ from artmotion.articulation.slam.ekf import (
     _check_arguments,
     _check_control,
     _check_sightings,
+    _control_noise,
+    _inverse_observation,
+    _motion_model,
+    _observe,
     _wrap,
-    control_noise,
     gate_threshold,
-    inverse_observation,
-    motion_model,
-    observe,
 )
 from artmotion.articulation.slam.landmarks import Decision, Joint, LandmarkModels
 from artmotion.errors import InputError, check_bool, check_range
@@ -84,7 +84,7 @@ def moving_observation(pose: np.ndarray, s: np.ndarray, offset: np.ndarray, join
     (Eq. 4.24, bearing wrapped to [-pi, pi)), and its Jacobians w.r.t. the ``Pose2`` tangent of ``pose``
     (body frame, 2 x 3; Eq. 4.27), ``s`` (2 x 2; Eq. 4.28 through ``dm/dq``) and ``offset`` (2 x 2)."""
     m, dm = joint.position(float(s[0]))
-    zh, Hx, Hm = observe(pose, m + offset)
+    zh, Hx, Hm = _observe(pose, m + offset)
     e = np.array([zh[0] - z[0], _wrap(zh[1] - z[1])])
     Hp = Hx @ _tangent_to_world(pose[2])
     Hs = np.zeros((2, 2))
@@ -248,8 +248,8 @@ class GraphSlam:
         regulariser keeps it invertible)."""
         u = _check_control(u)
         gtsam = self._gtsam
-        inc, _, Gu = motion_model(np.zeros(3), u, self.dt)
-        M = control_noise(u, self.alphas)
+        inc, _, Gu = _motion_model(np.zeros(3), u, self.dt)
+        M = _control_noise(u, self.alphas)
         J = _tangent_to_world(inc[2]).T  # X(k)'s frame -> the tangent at the increment
         cov = J @ Gu @ M @ Gu.T @ J.T + _ODOMETRY_REG * np.eye(3)
         odo = gtsam.Pose2(*inc)
@@ -258,7 +258,7 @@ class GraphSlam:
         self._pose_value = self._pose_value.compose(odo)
         self._values.insert(self._x(self.k + 1), self._pose_value)
         # the prediction the EKF would make: the gate's pose uncertainty until the update
-        _, Gx, Gw = motion_model(self._pose, u, self.dt)
+        _, Gx, Gw = _motion_model(self._pose, u, self.dt)
         self._cov = Gx @ self._cov @ Gx.T + Gw @ M @ Gw.T
         self._odometry.append((Gx, Gw @ M @ Gw.T))
         self._pose = _pose_array(self._pose_value)
@@ -308,7 +308,7 @@ class GraphSlam:
     def _learn(self, i: int, z: np.ndarray) -> bool:
         """Algorithm 1 on sighting ``z`` of undecided landmark ``i`` (as ``EKFSlam._learn``); True if
         the sighting is taken care of (the landmark entered the graph with it)."""
-        m, _, Gz = inverse_observation(self._pose, z)
+        m, _, Gz = _inverse_observation(self._pose, z)
         d = self.models.observe(i, m, Gz @ self.R1 @ Gz.T, self.k)
         if d is None:
             return False
@@ -327,7 +327,7 @@ class GraphSlam:
         """Landmark ``i`` enters the graph as static (a fresh ``Point2``) with sighting ``z``."""
         t = _Track("static", self._key("l"))
         self.tracks[i] = t
-        self._values.insert(t.key, inverse_observation(self._pose, z)[0])
+        self._values.insert(t.key, _inverse_observation(self._pose, z)[0])
         self._sighting(t, z)
 
     def _sighting(self, t: _Track, z: np.ndarray, k: int | None = None, init: np.ndarray | None = None) -> None:
@@ -344,7 +344,7 @@ class GraphSlam:
         if t.joint is None:
             self._add(gtsam.BearingRangeFactor2D(xk, t.key, gtsam.Rot2.fromAngle(float(z[1])), float(z[0]),
                                                  self._br_noise), t)
-            _, _, H = observe(pose, self._estimate(t.key, point=True))
+            _, _, H = _observe(pose, self._estimate(t.key, point=True))
             if t.P is None:  # the first sighting: the inverse observation's covariance
                 Hi = _inv2(H)
                 t.P = Hi @ self.R1 @ Hi.T
@@ -429,7 +429,7 @@ class GraphSlam:
         if past:
             qs = [d.q]
             for k, zk in reversed(past):  # initial q from the sighting on the joint, unwrapped backwards
-                m = inverse_observation(_pose_array(self.isam.calculateEstimatePose2(self._x(k))), zk)[0]
+                m = _inverse_observation(_pose_array(self.isam.calculateEstimatePose2(self._x(k))), zk)[0]
                 q = joint.coordinate(m)
                 if joint.kind == "revolute":
                     q += 2 * np.pi * round((qs[-1] - q) / (2 * np.pi))
@@ -458,13 +458,13 @@ class GraphSlam:
         if not self.gating:
             return True
         if t.joint is None:
-            zh, Hx, H = observe(self._pose, self._estimate(t.key, point=True))
+            zh, Hx, H = _observe(self._pose, self._estimate(t.key, point=True))
             P = t.P
         else:
             Fg, Qg = t.gap(self.k - t.steps[-1])
             s = Fg @ self._estimate(t.keys[-1])
             m, dm = t.joint.position(float(s[0]))
-            zh, Hx, Hm = observe(self._pose, m + self._estimate(t.offset, point=True))
+            zh, Hx, Hm = _observe(self._pose, m + self._estimate(t.offset, point=True))
             H = np.column_stack([Hm @ dm, np.zeros(2)])
             P = Fg @ t.P @ Fg.T + Qg
         y = np.array([z[0] - zh[0], _wrap(z[1] - zh[1])])

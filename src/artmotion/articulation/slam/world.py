@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from artmotion.articulation.slam.ekf import MIN_RANGE, _wrap, control_noise, motion_model
+from artmotion.articulation.slam.ekf import MIN_RANGE, _control_noise, _motion_model, _wrap
 from artmotion.errors import InputError, check_range, check_seed
 
 
@@ -213,9 +213,9 @@ def _simulate(world: World, steps: int, cfg: SimConfig | None, rng, radius: floa
     obs = []
     u = np.array([cfg.v, cfg.w])
     for k in range(steps):
-        M = control_noise(u, cfg.alphas)
+        M = _control_noise(u, cfg.alphas)
         ut = u + rng.normal(0.0, np.sqrt(np.diag(M)))
-        x, _, _ = motion_model(x, ut, cfg.dt)
+        x, _, _ = _motion_model(x, ut, cfg.dt)
         x[2] = _wrap(x[2])
         t = (k + 1) * cfg.dt
         L = world.positions(t)

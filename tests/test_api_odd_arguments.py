@@ -4,6 +4,7 @@ each case was a silently wrong result, or an error that blamed something else.""
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -336,3 +337,52 @@ def test_box_helpers_refuse_rows_that_are_not_boxes():
     assert fit_size(640, 480, 320, 240) == (0.5, (320, 240))
     assert box_area(np.zeros((0, 4))).shape == (0,) and box_area(np.zeros(0)).shape == (0,)
     assert iou([0, 0, 10, 10], [0, 0, 10, 10]) == 1.0
+
+
+def test_track_and_report_never_write_over_their_inputs(tmp_path):
+    """track(video=...) replaced the input video (or gt.txt, det.txt) with the annotated one, and
+    write_report an input video with its page: the CLI refused both, the Python API did not."""
+    import shutil
+
+    from artmotion.app.report import write_report
+    from artmotion.io.sequence import open_sequence
+    from artmotion.tracking import track
+
+    seq_dir = tmp_path / "TUD-Campus"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "data" / "TUD-Campus", seq_dir)
+    before = {p: p.read_bytes() for p in seq_dir.rglob("*") if p.is_file()}
+    for victim in [p for p in before if p.suffix in (".mp4", ".txt", ".ini")]:
+        with pytest.raises(InputError, match="is also an input|inside the input folder"):
+            track(seq_dir, video=victim)
+        with pytest.raises(InputError, match="is also an input|inside the input folder"):
+            write_report(victim, open_sequence(seq_dir), np.zeros((0, 10)), {"events": []})
+    assert {p: p.read_bytes() for p in seq_dir.rglob("*") if p.is_file()} == before
+
+
+def test_part_video_leaves_a_file_it_cannot_write_as_it_was(tmp_path):
+    """A name OpenCV has no writer for left the user's file empty and returned success."""
+    from artmotion.articulation.synthetic import part_video
+
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    with pytest.raises(InputError, match="cannot write an MJPG video"):
+        part_video(notes, frames=6, size=(64, 48))
+    assert notes.read_text() == "my notes\n" and sorted(tmp_path.iterdir()) == [notes]
+    with pytest.raises(InputError, match="unknown motion"):
+        part_video(tmp_path / "v.avi", "wobble")
+    assert part_video(tmp_path / "v.avi", frames=6, size=(64, 48)).stat().st_size > 0
+
+
+def test_an_index_that_fails_while_it_is_created_leaves_nothing(tmp_path, monkeypatch):
+    """EventIndex(path) made the file in place: a failure part-way left a file that was no index
+    (every later command then refused it), and the folders it had made."""
+    import artmotion.app.index as index
+
+    monkeypatch.setattr(index, "SCHEMA", index.SCHEMA + "\nCREATE TABLE broken (;")
+    with pytest.raises(InputError, match="cannot create index"):
+        index.EventIndex(tmp_path / "a" / "b" / "new.sqlite")
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    with index.EventIndex(tmp_path / "a" / "new.sqlite") as idx:
+        assert idx.write
+    index.check_index(tmp_path / "a" / "new.sqlite")

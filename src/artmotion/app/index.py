@@ -180,29 +180,24 @@ class EventIndex:
         (listing, searching) and never creates it."""
         self.path = as_path(path, "an index")
         self.write = check_bool("write", write)
-        exists = self.path.exists()
-        if exists:
-            check_index(self.path)
-        elif not write:
-            raise InputError("no such index (add runs with 'artmotion index add')", path=self.path)
+        if not self.path.exists():
+            if not write:
+                raise InputError("no such index (add runs with 'artmotion index add')", path=self.path)
+            _create_index(self.path)
+        check_index(self.path)
         try:
             if write:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
                 self.conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT)
-                if not exists:
-                    self.conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-                    self.conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
-                    self.conn.executescript(SCHEMA)
             else:
                 self.conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, timeout=BUSY_TIMEOUT)
             self.conn.execute("PRAGMA foreign_keys = ON")
-            if exists:  # a page that still parses may hold damaged rows: answers from it would be wrong
-                with self._errors():
-                    problem = self.conn.execute("PRAGMA quick_check").fetchone()[0]
-                if problem != "ok":
-                    self.conn.close()
-                    raise InputError(f"damaged index ({problem}); build a new one with 'artmotion index add'",
-                                     path=self.path)
+            # a page that still parses may hold damaged rows: answers from it would be wrong
+            with self._errors():
+                problem = self.conn.execute("PRAGMA quick_check").fetchone()[0]
+            if problem != "ok":
+                self.conn.close()
+                raise InputError(f"damaged index ({problem}); build a new one with 'artmotion index add'",
+                                 path=self.path)
         except sqlite3.DatabaseError as exc:
             raise InputError(f"cannot open index: {exc}", path=self.path) from None
         except OSError as exc:
@@ -528,6 +523,31 @@ class IndexAppeared(Exception):
     """Raised by :func:`building` when another process created the index at its path while this
     one built a new one there: nothing was written; open it again (:func:`building` then adds to
     the index that appeared)."""
+
+
+def _create_index(path: Path) -> None:
+    """A new, empty index at ``path``, built under a temporary name and linked into place: a
+    failure (a full disk) leaves nothing, not a file that is no index (it was made in place); an
+    index another process made there meanwhile is kept."""
+    from artmotion.io.atomic import NameTaken, atomic_path
+
+    try:
+        with atomic_path(path, suffix=".sqlite", replace=False) as tmp:
+            tmp.unlink()                        # SQLite creates the file itself
+            conn = sqlite3.connect(tmp)
+            try:
+                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+                conn.executescript(SCHEMA)
+                conn.commit()
+            finally:
+                conn.close()
+    except NameTaken:
+        pass
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"cannot create index: {exc}", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot create index: {exc.strerror}", path=path) from None
 
 
 @contextlib.contextmanager

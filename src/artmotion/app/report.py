@@ -17,7 +17,7 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from artmotion.geometry import fit_size
-from artmotion.io import atomic_write
+from artmotion.io import atomic_write, check_writable
 from artmotion.tracking.video import colour_of, draw_boxes
 
 MAX_KEY_FRAMES = 8
@@ -101,6 +101,7 @@ def write_report(path: str | os.PathLike, seq, tracks: np.ndarray, manifest: dic
     that tall), the frames decoded at a reduced size where they are larger: at the largest frames
     artmotion reads (2^27 pixels) the key frames and the background's 25 samples at full or half
     size took 12 GB."""
+    check_writable(path, inputs=seq.inputs())  # (before the work; the input video was replaced by the page)
     length = int(seq.length)
     keys = set(key_frames(length, manifest["events"], tracks))
     samples = set(np.linspace(1, length, min(length, 25)).round().astype(int).tolist())

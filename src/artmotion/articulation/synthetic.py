@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from artmotion.errors import InputError
+
 __all__ = ["KINDS", "part_video", "synthetic_log"]
 
 #: kind -> true joint
@@ -178,11 +180,13 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     is not flat, whose points pass behind it."""
     import cv2
 
-    from artmotion.io.atomic import atomic_path
-    from artmotion.io.media import cv2_name
+    from artmotion.io.atomic import atomic_path, check_writable
+    from artmotion.io.media import check_written_video, cv2_name
+
+    check_writable(path)
 
     if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing", "globe"):
-        raise ValueError(f"unknown motion {motion!r}")
+        raise InputError(f"unknown motion {motion!r} (revolute, prismatic, static, hinge, depth, swing or globe)")
     rng = np.random.default_rng(seed)
     w, h = size
 
@@ -231,6 +235,8 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     rest = frames // 6
     with atomic_path(path) as tmp:
         out = cv2.VideoWriter(cv2_name(tmp), cv2.VideoWriter.fourcc(*"MJPG"), fps, (w, h))
+        if not out.isOpened():    # (a name OpenCV has no writer for: the file was left empty)
+            raise InputError("cannot write an MJPG video under this name (give a name ending in .avi)", path=path)
         for f in range(frames):
             q = float(np.clip((f - rest) / max(frames - 2 * rest, 1), 0.0, 1.0))
             q = 0.5 - 0.5 * np.cos(np.pi * q)
@@ -264,4 +270,5 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
                 img = cv2.convertScaleAbs(img, alpha=0.75, beta=10.0)
             out.write(img)
         out.release()
+        check_written_video(tmp, frames, where=path)     # (a full disk drops frames without a word)
     return path

@@ -129,6 +129,13 @@ class Sequence:
         if fps is not None:
             self.fps, self.fps_known = float(check_range(f"{name} (frames/s)", fps, MIN_FPS, MAX_FPS)), True
 
+    def inputs(self) -> tuple[Path | None, ...]:
+        """The files and folders this sequence is read from (its video or folder of frames, its
+        detections, ground truth and ``seqinfo.ini``): an output must not replace one of them."""
+        root = Path(self.path)
+        ini = root / "seqinfo.ini" if root.is_dir() else None
+        return (self.video, self.folder, self.det_path, self.gt_path, ini)
+
     @property
     def folder(self) -> Path | None:
         """The folder the frames are read from (``None`` for a video): outputs stay out of it."""

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError, check_bool, check_range
+from artmotion.io.atomic import check_writable
 from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import check_experts
@@ -203,6 +204,8 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     seq.set_bits(bits, "bits")
     # (a detector of the caller's own is what they asked for: it wins over the sequence's det.txt)
     det_path = Path(det) if det is not None else seq.det_path if isinstance(detector, str) else None
+    if video is not None:   # (before the work: the annotated video replaced the input video or gt.txt)
+        check_writable(video, inputs=(*seq.inputs(), det_path))
     model = None
     if det_path is not None:
         dets, probabilities = read_detections(det_path)

@@ -83,10 +83,9 @@ def track_command(
     # before the work, so that no output is written when one cannot be (nor over an input: the
     # detections, given or the sequence's own)
     # (and the sequence's own seqinfo.ini and ground truth: an output over them broke the folder)
+    check_writable(out, events, video, inputs=(*seq.inputs(), det))
     folder = Path(source)
-    ini = folder / "seqinfo.ini" if folder.is_dir() else None
-    check_writable(out, events, video, inputs=(seq.video, seq.folder, det or seq.det_path, seq.gt_path, ini))
-    if video and ini is not None and seq.video is not None:
+    if video and folder.is_dir() and seq.video is not None:
         from artmotion.io import check_apart
 
         check_apart(video, (folder,))   # (a second video in a sequence folder of one makes it unreadable)

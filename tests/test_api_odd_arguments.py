@@ -386,3 +386,21 @@ def test_an_index_that_fails_while_it_is_created_leaves_nothing(tmp_path, monkey
     with index.EventIndex(tmp_path / "a" / "new.sqlite") as idx:
         assert idx.write
     index.check_index(tmp_path / "a" / "new.sqlite")
+
+
+def test_image_and_figure_writers_name_a_format_they_cannot_write(tmp_path):
+    """cv2.error and matplotlib's ValueError, not one line naming the file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from artmotion.io.atomic import save_figure
+    from artmotion.io.media import write_image
+
+    with pytest.raises(InputError, match=r"cannot encode the image as \.txt"):
+        write_image(tmp_path / "x.txt", np.zeros((4, 4, 3), np.uint8))
+    with pytest.raises(InputError, match=r"cannot write \.xyz figures"):
+        save_figure(plt.figure(), tmp_path / "f.xyz")
+    assert list(tmp_path.iterdir()) == []
+    assert save_figure(plt.figure(), tmp_path / "f.png").stat().st_size > 0

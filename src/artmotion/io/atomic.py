@@ -569,9 +569,12 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Pa
     import matplotlib.pyplot as plt
 
     path = as_path(path, "a figure")
+    fmt = path.suffix.lstrip(".").lower() or "png"
     try:
+        if fmt not in fig.canvas.get_supported_filetypes():
+            raise InputError(f"matplotlib cannot write .{fmt} figures (e.g. .png, .pdf, .svg)", path=path)
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **savefig_kw)
+            fig.savefig(tmp, dpi=dpi, format=fmt, **savefig_kw)
     finally:
         plt.close(fig)
     return path

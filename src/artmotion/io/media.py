@@ -661,9 +661,12 @@ def write_image(path: str | os.PathLike, img: np.ndarray, params: list[int] | No
     from artmotion.io.atomic import atomic_write
 
     path = Path(path)
-    ok, buf = cv2.imencode(path.suffix or ".png", img, params or [])
+    try:
+        ok, buf = cv2.imencode(path.suffix or ".png", img, params or [])
+    except cv2.error:       # (an extension no encoder takes, an image it cannot encode)
+        ok = False
     if not ok:
-        raise InputError("cannot encode the image", path=path)
+        raise InputError(f"cannot encode the image as {path.suffix or '.png'} (e.g. .png, .jpg)", path=path)
     with atomic_write(path, "wb") as fh:
         fh.write(buf.tobytes())
     return path

@@ -404,3 +404,12 @@ def test_image_and_figure_writers_name_a_format_they_cannot_write(tmp_path):
         save_figure(plt.figure(), tmp_path / "f.xyz")
     assert list(tmp_path.iterdir()) == []
     assert save_figure(plt.figure(), tmp_path / "f.png").stat().st_size > 0
+
+
+def test_pose_filter_has_its_model_before_the_first_step():
+    """F and Q (filterpy's names) existed only after the first step: an AttributeError before."""
+    from artmotion.pose.filter import PoseFilter
+
+    f = PoseFilter([1.0, 2.0], dt=0.04)
+    np.testing.assert_allclose(f.F, [[1.0, 0.04], [0.0, 1.0]])
+    assert f.Q.shape == (2, 2, 2) and f.Q[1, 0, 0] == pytest.approx(2 * f.Q[0, 0, 0])

@@ -146,6 +146,11 @@ class PoseFilter:
         for name, mult in (("filter_std", self.filter_std), ("smooth_std", self.smooth_std)):
             if mult.ndim > 1 or mult.size not in (1, k):
                 raise InputError(f"{name} must be one multiplier or one per angle ({k}), got shape {mult.shape}")
+        # the angles' filters are independent: one 2-state filter each, stepped together (F, Q
+        # per angle: the diagonal blocks of the constant-velocity model over all angles)
+        Fm, Q, _ = constant_velocity(self.dt, self.accel_var, dims=k)
+        self.F = Fm[:2, :2]
+        self.Q = np.stack([Q[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] for i in range(k)])
         self.reset()
 
     def reset(self) -> None:
@@ -153,11 +158,6 @@ class PoseFilter:
         self.P = np.zeros((0, 2, 2))        # (k, 2, 2): their covariances
 
     def _start(self, z: np.ndarray, var: np.ndarray) -> None:
-        # the angles' filters are independent: one 2-state filter each, stepped together (F, Q
-        # per angle: the diagonal blocks of the constant-velocity model over all angles)
-        Fm, Q, _ = constant_velocity(self.dt, self.accel_var, dims=len(z))
-        self.F = Fm[:2, :2]
-        self.Q = np.stack([Q[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] for i in range(len(z))])
         self.x = np.column_stack([z, np.zeros_like(z)])
         self.P = np.zeros((len(z), 2, 2))
         self.P[:, 0, 0] = var

@@ -86,6 +86,8 @@ def test_index_search_takes_a_path_and_names_what_is_wrong(tmp_path):
     lambda tmp: __import__("artmotion.articulation", fromlist=["x"]).fit_trajectory(tmp / "drawer.log", time="no"),
     lambda tmp: __import__("artmotion.tracking.metrics", fromlist=["x"]).evaluate(np.ones((1, 6)), np.ones((1, 6)),
                                                                                    per_alpha="no"),
+    lambda tmp: __import__("artmotion.tracking.metrics", fromlist=["x"]).evaluate_sequences(
+        [(np.ones((1, 6)), np.ones((1, 6)))], per_alpha="no"),
 ])
 def test_switches_given_text_are_refused(tmp_path, call):
     """"no" is true to Python: each of these left its switch on (annotated video, a writable index
@@ -267,14 +269,21 @@ def test_beliefs_and_likelihoods_must_be_symmetric():
     from artmotion.tracking.pote import fuse
 
     odd = Gaussian([1.0, 0.0], [[1.0, 5.0], [0.0, 1.0]])
-    with pytest.raises(InputError, match="not symmetric"):
+    with pytest.raises(InputError, match="not symmetric: its off-diagonal entries 5 and 0 differ"):
         fuse([odd])
-    assert "not symmetric" in belief_problem(odd)
+    assert "not symmetric (off-diagonal entries 5 and 0)" in belief_problem(odd)
     assert belief_problem(Gaussian([1.0, 0.0], [[1.0, 0.2], [0.2, 1.0]])) is None
     with pytest.raises(InputError, match="mean of 2 numbers"):
         Gaussian([1.0, 2.0, 3.0], np.eye(2))
-    with pytest.raises(InputError, match="symmetric positive definite"):
+    with pytest.raises(InputError, match="S and its transpose differ by up to 0.9"):
         gaussian_loglik([0.5, 0.1], [[1.0, 0.9], [0.0, 1.0]])
+    with pytest.raises(InputError, match="square covariance"):
+        gaussian_loglik(np.zeros(0), np.zeros((0, 0)))
+    # symmetric only to float32's rounding (J P J^T): accepted, by the filter's fusion too
+    J = np.array([[1.3, 0.4], [-0.7, 2.1]], np.float32)
+    C = J @ np.array([[4.0, 1.1], [1.1, 3.0]], np.float32) @ J.T
+    assert np.isfinite(gaussian_loglik(np.zeros(2, np.float32), C))
+    assert belief_problem(Gaussian([10.0, 20.0], C)) is None and fuse([Gaussian([10.0, 20.0], C)]) is not None
     with pytest.raises(InputError, match="too far out"):       # (was -inf for m > 1, an error for m = 1)
         gaussian_loglik(np.array([1e200, 0.0]), np.eye(2))
     with pytest.raises(InputError, match="must hold 2 values"):
@@ -398,7 +407,7 @@ def test_image_and_figure_writers_name_a_format_they_cannot_write(tmp_path):
     from artmotion.io.atomic import save_figure
     from artmotion.io.media import write_image
 
-    with pytest.raises(InputError, match=r"cannot encode the image as \.txt"):
+    with pytest.raises(InputError, match=r"cannot write \.txt images"):
         write_image(tmp_path / "x.txt", np.zeros((4, 4, 3), np.uint8))
     with pytest.raises(InputError, match=r"cannot write \.xyz figures"):
         save_figure(plt.figure(), tmp_path / "f.xyz")
@@ -413,3 +422,71 @@ def test_pose_filter_has_its_model_before_the_first_step():
     f = PoseFilter([1.0, 2.0], dt=0.04)
     np.testing.assert_allclose(f.F, [[1.0, 0.04], [0.0, 1.0]])
     assert f.Q.shape == (2, 2, 2) and f.Q[1, 0, 0] == pytest.approx(2 * f.Q[0, 0, 0])
+
+
+def test_a_second_video_never_goes_into_a_sequence_of_one_video(tmp_path):
+    """track(video=...) and run_pipeline wrote annotated.mp4 into a folder whose single video is
+    the sequence (the CLI's track refused): the folder then did not open ("several video files");
+    from SEQ/img1 the seqinfo.ini read is the parent's, which an output replaced."""
+    import shutil
+
+    from artmotion.app.pipeline import run_pipeline
+    from artmotion.io.sequence import open_sequence
+    from artmotion.tracking import track
+
+    sample = Path(__file__).resolve().parents[1] / "data" / "TUD-Campus"
+    seq_dir = tmp_path / "TUD"
+    shutil.copytree(sample, seq_dir)
+    assert open_sequence(seq_dir).video_home == seq_dir
+    with pytest.raises(InputError, match="inside the input folder"):
+        track(seq_dir, video=seq_dir / "annotated.mp4")
+    with pytest.raises(InputError, match="inside the input folder"):
+        run_pipeline(seq_dir, seq_dir)
+    assert open_sequence(seq_dir).length == 71 and not (seq_dir / "annotated.mp4").exists()
+    mot = tmp_path / "MOT"
+    (mot / "img1").mkdir(parents=True)
+    import cv2
+
+    cv2.imwrite(str(mot / "img1" / "000001.jpg"), np.zeros((48, 64, 3), np.uint8))
+    (mot / "seqinfo.ini").write_text("[Sequence]\nname=MOT\nframeRate=25\nseqLength=1\nimWidth=64\nimHeight=48\n")
+    assert open_sequence(mot / "img1").inputs()[-1] == mot / "seqinfo.ini"
+    with pytest.raises(InputError, match="is also an input"):
+        track(mot / "img1", video=mot / "seqinfo.ini")
+
+
+def test_review_of_the_new_checks(tmp_path):
+    """Valid input the first checks refused, and bad input they let through."""
+    from artmotion.app.index import EventIndex
+    from artmotion.articulation.synthetic import part_video
+    from artmotion.geometry import box_area, box_overlap, clip_box, fit_size
+    from artmotion.io.media import write_image
+
+    assert fit_size(640, 480, float("inf"), 240) == (0.5, (320, 240))        # no width limit
+    assert fit_size(np.array(640), 480, 320, 240) == (0.5, (320, 240))       # a 0-d array
+    np.testing.assert_allclose(clip_box([600, -5, 100, 20], float("inf"), 480), [600, 0, 100, 15])
+    with pytest.raises(InputError, match="width must be a number"):
+        fit_size(True, 480, 320, 240)
+    with pytest.raises(InputError, match=r"got shape \(3, 0\)"):               # rows of no columns
+        box_area(np.zeros((3, 0)))
+    with pytest.raises(InputError, match="box_overlap"):
+        box_overlap([[0, 0], [10, 10]], [0, 0, 10, 10])
+    with pytest.raises(InputError, match=r"cannot encode the image as \.png \(a uint8 array of shape \(0, 0, 3\)"):
+        write_image(tmp_path / "e.png", np.zeros((0, 0, 3), np.uint8))
+    with pytest.raises(InputError, match="frames must be"):
+        part_video(tmp_path / "v.avi", frames=0)
+    long = tmp_path / ("n" * 233 + ".sqlite")                                 # (its journal's name is too long)
+    with EventIndex(long) as idx:
+        assert idx.write
+    assert sorted(p.name for p in tmp_path.iterdir()) == [long.name]
+
+
+def test_save_figure_takes_what_matplotlib_writes_whatever_the_backend(tmp_path):
+    import subprocess
+    import sys
+
+    code = ("import matplotlib.pyplot as plt, sys\nfrom artmotion.io.atomic import save_figure\n"
+            "save_figure(plt.figure(), sys.argv[1])")
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path / "x.png")], env={**__import__("os").environ,
+                          "MPLBACKEND": "pdf"}, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "x.png").stat().st_size > 0

@@ -536,6 +536,9 @@ def _create_index(path: Path) -> None:
             tmp.unlink()                        # SQLite creates the file itself
             conn = sqlite3.connect(tmp)
             try:
+                # (no journal file: its name, the temporary's plus "-journal", may be too long; a
+                # failure leaves the temporary file, which is removed)
+                conn.execute("PRAGMA journal_mode = MEMORY")
                 conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                 conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
                 conn.executescript(SCHEMA)

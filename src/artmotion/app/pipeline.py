@@ -243,6 +243,8 @@ def run_pipeline(
     out = Path(out_dir) if out_dir is not None else default_run_dir(seq, fingerprint)
     for path in (out, *also_writes):
         check_apart(path, (seq.folder,))
+    if video:   # (annotated.mp4 in the folder of a sequence's single video makes it unreadable)
+        check_apart(out, (seq.video_home,))
     check_out_dir(out, replace=_is_run, outputs=RUN_FILES)    # before the work, not after it
     if video:
         cv2_name(out)       # (OpenCV writes annotated.mp4 in it)

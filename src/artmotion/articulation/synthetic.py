@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 
 __all__ = ["KINDS", "part_video", "synthetic_log"]
 
@@ -184,6 +184,7 @@ def part_video(path, motion: str = "revolute", frames: int = 90, size: tuple[int
     from artmotion.io.media import check_written_video, cv2_name
 
     check_writable(path)
+    check_range("frames", frames, 1, 10**6, integer=True)
 
     if motion not in ("revolute", "prismatic", "static", "hinge", "depth", "swing", "globe"):
         raise InputError(f"unknown motion {motion!r} (revolute, prismatic, static, hinge, depth, swing or globe)")

@@ -178,9 +178,22 @@ def gaussian_loglik(y: np.ndarray, S: np.ndarray) -> float:
             raise InputError(f"gaussian_loglik: y = {float(y[0]):g} is too far out for variance {s:g} (its "
                              "log-likelihood is beyond the floats)")
         return out
-    if (S.ndim != 2 or S.shape[0] != S.shape[1] or y.shape != S.shape[:1]
-            or np.abs(S - S.T).max() > SYMMETRY_TOL * np.abs(S).max()):
+    if (S.ndim != 2 or S.shape[0] != S.shape[1] or S.shape[0] == 0 or y.shape != S.shape[:1]
+            or np.abs(S - S.T).max() > _symmetry_tol(S) * np.abs(S).max()):
         _loglik_problem(y, S)     # (Cholesky reads one triangle only: one not symmetric would pass as another)
+    return _loglik(y, S)
+
+
+def _symmetry_tol(S: np.ndarray) -> float:
+    """How far from symmetric (relative) a covariance may be: :data:`SYMMETRY_TOL`, or a few
+    dozen rounding units of a lower precision (float32: ``J P J^T`` rounds to ~4e-7)."""
+    return max(SYMMETRY_TOL, 64.0 * float(np.finfo(S.dtype).eps)) if S.dtype.kind == "f" else SYMMETRY_TOL
+
+
+def _loglik(y: np.ndarray, S: np.ndarray) -> float:
+    """:func:`gaussian_loglik` of an ``m``-vector and an ``m x m`` matrix (``m`` >= 2) that are
+    symmetric by construction (the Kalman update's ``H P H^T + R``): the checks of shape and
+    symmetry are the public function's."""
     try:
         L = np.linalg.cholesky(S)
         z = np.linalg.solve(L, y)
@@ -210,8 +223,12 @@ def _loglik_problem(y: np.ndarray, S: np.ndarray) -> None:
         raise InputError("gaussian_loglik: y and S must be finite, got NaN or infinite values")
     if m == 1:
         raise InputError(f"gaussian_loglik: the variance S must be positive, got {float(S[0, 0]):g}")
+    asym = float(np.abs(S - S.T).max())
+    if asym > _symmetry_tol(S) * np.abs(S).max():
+        raise InputError(f"gaussian_loglik: S must be a symmetric covariance, but S and its transpose differ by "
+                         f"up to {asym:.3g}")
     low = float(np.linalg.eigvalsh(S)[0])
-    if low <= 0.0 or np.abs(S - S.T).max() > SYMMETRY_TOL * np.abs(S).max():
+    if low <= 0.0:
         raise InputError(f"gaussian_loglik: S must be a symmetric positive definite covariance, "
                          f"but its smallest eigenvalue is {low:.3g}")
 
@@ -309,7 +326,7 @@ class KalmanFilter:
             PHt = self._P @ H.T
             S = H @ PHt + R
             K = np.linalg.solve(S.T, PHt.T).T
-            ll = gaussian_loglik(y, S)
+            ll = gaussian_loglik(y, S) if len(y) == 1 else _loglik(y, S)
         except InputError:      # (an innovation too far out for the floats: said as such)
             raise
         except (ValueError, np.linalg.LinAlgError) as e:

@@ -21,7 +21,7 @@ def _boxes(b, name: str) -> np.ndarray:
     except (TypeError, ValueError):
         raise InputError(f"{name}: boxes must be numbers x, y, w, h") from None
     if b.shape[-1:] != (4,):
-        if not b.size:          # (no boxes at all)
+        if b.shape == (0,):     # (no boxes at all; rows of no columns are no boxes either: refused)
             return b.reshape(0, 4)
         raise InputError(f"{name}: boxes must have shape (4,) or (..., 4): x, y, w, h, got shape {b.shape}")
     return b
@@ -150,8 +150,8 @@ def max_iou(box, boxes) -> float:
 
 def box_overlap(a, b) -> float:
     """:func:`overlap_ratio` of two single boxes, as a float."""
-    inter, area, area_b = _overlap_terms(np.asarray(a, dtype=float).reshape(4).tolist(),
-                                         np.asarray(b, dtype=float).reshape(4).tolist())
+    inter, area, area_b = _overlap_terms(_boxes(a, "box_overlap").reshape(4).tolist(),
+                                         _boxes(b, "box_overlap").reshape(4).tolist())
     if not math.isfinite(area + area_b - inter):  # a box with NaN or an infinity (as iou)
         raise _not_finite("box_overlap")
     return inter / area if area > 0 else 0.0
@@ -166,21 +166,34 @@ def union_box(boxes) -> np.ndarray:
     return xyxy_to_xywh(np.concatenate([xyxy[:, :2].min(0), xyxy[:, 2:].max(0)]))
 
 
+def _size(fn: str, name: str, v, zero: bool = False, no_limit: bool = False) -> float:
+    """A size given to ``fn`` as a float: a real number (a NumPy scalar or 0-d array too, not a
+    bool) above 0 (or at least 0 with ``zero``), finite (or infinite with ``no_limit``: no bound)."""
+    try:
+        if isinstance(v, (bool, np.bool_)) or np.ndim(v) != 0:
+            raise TypeError
+        f = float(v)
+    except (TypeError, ValueError):
+        f = math.nan
+    if not ((f >= 0.0 if zero else f > 0.0) and (no_limit or f < math.inf)):
+        raise InputError(f"{fn}: {name} must be a number {'>= 0' if zero else '> 0'}"
+                         f"{'' if no_limit else ' and finite'}, got {v!r}")
+    return f
+
+
 def fit_size(width: int, height: int, max_width: float, max_height: float) -> tuple[float, tuple[int, int]]:
     """The scale (at most 1) that fits an image of ``width`` x ``height`` within ``max_width`` x
     ``max_height``, and the scaled size, at least 1 pixel a side."""
-    for name, v in (("width", width), ("height", height), ("max_width", max_width), ("max_height", max_height)):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and 0 < v < math.inf):
-            raise InputError(f"fit_size: {name} must be a positive finite number, got {v!r}")
-    scale = min(1.0, max_width / width, max_height / height)
-    return scale, (max(1, round(width * scale)), max(1, round(height * scale)))
+    w, h = _size("fit_size", "width", width), _size("fit_size", "height", height)
+    scale = min(1.0, _size("fit_size", "max_width", max_width, no_limit=True) / w,
+                _size("fit_size", "max_height", max_height, no_limit=True) / h)
+    return scale, (max(1, round(w * scale)), max(1, round(h * scale)))
 
 
 def clip_box(b, width: float, height: float) -> np.ndarray:
     """Clip boxes to the image ``[0, width] x [0, height]``."""
-    for name, v in (("width", width), ("height", height)):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and 0 <= v < math.inf):
-            raise InputError(f"clip_box: {name} must be a finite number >= 0, got {v!r}")
+    width = _size("clip_box", "width", width, zero=True, no_limit=True)
+    height = _size("clip_box", "height", height, zero=True, no_limit=True)
     xyxy = xywh_to_xyxy(b)
     xyxy[..., [0, 2]] = np.clip(xyxy[..., [0, 2]], 0, width)
     xyxy[..., [1, 3]] = np.clip(xyxy[..., [1, 3]], 0, height)

@@ -571,7 +571,9 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 90, **savefig_kw) -> Pa
     path = as_path(path, "a figure")
     fmt = path.suffix.lstrip(".").lower() or "png"
     try:
-        if fmt not in fig.canvas.get_supported_filetypes():
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        if fmt not in FigureCanvasBase.get_supported_filetypes():   # (what any backend can write, not this one)
             raise InputError(f"matplotlib cannot write .{fmt} figures (e.g. .png, .pdf, .svg)", path=path)
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=dpi, format=fmt, **savefig_kw)

@@ -661,12 +661,16 @@ def write_image(path: str | os.PathLike, img: np.ndarray, params: list[int] | No
     from artmotion.io.atomic import atomic_write
 
     path = Path(path)
+    ext = path.suffix or ".png"
+    if not cv2.haveImageWriter("x" + ext):
+        raise InputError(f"cannot write {ext} images (e.g. .png, .jpg)", path=path)
     try:
-        ok, buf = cv2.imencode(path.suffix or ".png", img, params or [])
-    except cv2.error:       # (an extension no encoder takes, an image it cannot encode)
+        ok, buf = cv2.imencode(ext, img, params or [])
+    except cv2.error:       # (an image or parameters the encoder does not take)
         ok = False
     if not ok:
-        raise InputError(f"cannot encode the image as {path.suffix or '.png'} (e.g. .png, .jpg)", path=path)
+        got = f"a {img.dtype} array of shape {img.shape}" if isinstance(img, np.ndarray) else f"a {type(img).__name__}"
+        raise InputError(f"cannot encode the image as {ext} ({got}; or its parameters)", path=path)
     with atomic_write(path, "wb") as fh:
         fh.write(buf.tobytes())
     return path

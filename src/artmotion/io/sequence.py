@@ -129,12 +129,16 @@ class Sequence:
         if fps is not None:
             self.fps, self.fps_known = float(check_range(f"{name} (frames/s)", fps, MIN_FPS, MAX_FPS)), True
 
+    #: the ``seqinfo.ini`` the sequence is described by (read, or looked for), or None
+    ini_path: Path | None = None
+    #: the folder whose single video is the sequence (a MOTChallenge folder or a folder of one
+    #: video): a second video written into it would make it unreadable; None otherwise
+    video_home: Path | None = None
+
     def inputs(self) -> tuple[Path | None, ...]:
         """The files and folders this sequence is read from (its video or folder of frames, its
         detections, ground truth and ``seqinfo.ini``): an output must not replace one of them."""
-        root = Path(self.path)
-        ini = root / "seqinfo.ini" if root.is_dir() else None
-        return (self.video, self.folder, self.det_path, self.gt_path, ini)
+        return (self.video, self.folder, self.det_path, self.gt_path, self.ini_path)
 
     @property
     def folder(self) -> Path | None:
@@ -487,6 +491,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
         seq = Sequence(folder, name, fps, w, h, len(images), images=images, det_path=det, gt_path=gt,
                        orientation=turn, depth=frame_depth(images))
         seq.fps_known = known
+        seq.ini_path = folder / "seqinfo.ini"
         return seq
     videos = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_EXTS)
     if not videos:
@@ -504,6 +509,7 @@ def _open_mot_folder(folder: Path) -> Sequence:
     seq.fps_known = known or vfps is not None
     seq.length_exact = exact or length is not None
     seq.length_from = ini if length is not None else None
+    seq.ini_path, seq.video_home = folder / "seqinfo.ini", folder
     return seq
 
 
@@ -548,6 +554,7 @@ def _open_image_folder(folder: Path) -> Sequence:
     seq = Sequence(folder, name, fps or DEFAULT_FPS, w, h,
                    len(images), images=images, det_path=det, gt_path=gt, orientation=turn, depth=frame_depth(images))
     seq.fps_known = fps is not None
+    seq.ini_path = ini
     return seq
 
 
@@ -558,4 +565,5 @@ def _open_video(video: Path, name: str | None = None, folder: Path | None = None
                    det_path=_companion(base / "det" / "det.txt"), gt_path=_companion(base / "gt" / "gt.txt"),
                    orientation=turn)
     seq.fps_known = fps is not None
+    seq.video_home = folder
     return seq

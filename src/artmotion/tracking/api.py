@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from artmotion.errors import InputError, check_bool, check_range
-from artmotion.io.atomic import check_writable
+from artmotion.io.atomic import check_apart, check_writable
 from artmotion.io.sequence import Sequence, open_sequence
 from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
 from artmotion.tracking.experts import check_experts
@@ -206,6 +206,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
     det_path = Path(det) if det is not None else seq.det_path if isinstance(detector, str) else None
     if video is not None:   # (before the work: the annotated video replaced the input video or gt.txt)
         check_writable(video, inputs=(*seq.inputs(), det_path))
+        check_apart(video, (seq.video_home,))   # (a second video in it would make the sequence unreadable)
     model = None
     if det_path is not None:
         dets, probabilities = read_detections(det_path)

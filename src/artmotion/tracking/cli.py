@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from artmotion.tracking.config import DETECT_EVERY
@@ -84,11 +82,9 @@ def track_command(
     # detections, given or the sequence's own)
     # (and the sequence's own seqinfo.ini and ground truth: an output over them broke the folder)
     check_writable(out, events, video, inputs=(*seq.inputs(), det))
-    folder = Path(source)
-    if video and folder.is_dir() and seq.video is not None:
-        from artmotion.io import check_apart
+    from artmotion.io import check_apart
 
-        check_apart(video, (folder,))   # (a second video in a sequence folder of one makes it unreadable)
+    check_apart(video, (seq.video_home,))   # (a second video in a sequence folder of one makes it unreadable)
     if progress is None:
         progress = sys.stderr.isatty()
     # the outputs are written under temporary names and renamed together once all are written: a

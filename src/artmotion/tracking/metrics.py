@@ -389,6 +389,7 @@ def evaluate_sequences(pairs, iou_threshold: float = 0.5, per_alpha: bool = Fals
     (``"auto"``: decided per sequence).
     """
     thr = _threshold(iou_threshold)
+    per_alpha = check_bool("per_alpha", per_alpha)
     gts, ress = [], []
     frame_off = id_off = 0
     for k, (gt, res) in enumerate(pairs):

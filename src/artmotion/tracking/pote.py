@@ -13,6 +13,7 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.tracking.experts import (
+    BELIEF_SYMMETRY,
     EXPERTS,
     BlobExpert,
     DetectionExpert,
@@ -62,12 +63,15 @@ def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
 
 def _information(a: np.ndarray) -> np.ndarray:
     """Inverse of a belief's 2x2 covariance (closed form), which must be finite and positive
-    definite (checked on the way: symmetric, a positive determinant and first entry, a finite
-    determinant)."""
+    definite (checked on the way: a positive determinant and first entry, a finite determinant)
+    and symmetric (to :data:`~artmotion.tracking.experts.BELIEF_SYMMETRY`)."""
     det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    if not (0.0 < det < _INF and a[0, 0] > 0 and abs(a[0, 1] - a[1, 0]) <= 1e-9 * (a[0, 0] + a[1, 1])):
-        raise InputError("a belief's covariance is not finite and positive definite (or not symmetric): "
+    if not (0.0 < det < _INF and a[0, 0] > 0):
+        raise InputError("a belief's covariance is not finite and positive definite: "
                          f"[[{a[0, 0]:g}, {a[0, 1]:g}], [{a[1, 0]:g}, {a[1, 1]:g}]]")
+    if abs(a[0, 1] - a[1, 0]) > BELIEF_SYMMETRY * (a[0, 0] + a[1, 1]):
+        raise InputError(f"a belief's covariance is not symmetric: its off-diagonal entries {a[0, 1]:.7g} and "
+                         f"{a[1, 0]:.7g} differ")
     return np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det
 
 

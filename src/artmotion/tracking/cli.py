@@ -69,7 +69,7 @@ def track_command(
     import sys
 
     from artmotion.errors import InputError
-    from artmotion.io import atomic_path, check_writable, write_events, write_mot
+    from artmotion.io import atomic_path, check_apart, check_writable, write_events, write_mot
     from artmotion.io.media import depth_note
     from artmotion.tracking import DEFAULT_EXPERTS, open_sequence, track
     from artmotion.tracking.api import too_short
@@ -82,8 +82,6 @@ def track_command(
     # detections, given or the sequence's own)
     # (and the sequence's own seqinfo.ini and ground truth: an output over them broke the folder)
     check_writable(out, events, video, inputs=(*seq.inputs(), det))
-    from artmotion.io import check_apart
-
     check_apart(video, (seq.video_home,))   # (a second video in a sequence folder of one makes it unreadable)
     if progress is None:
         progress = sys.stderr.isatty()

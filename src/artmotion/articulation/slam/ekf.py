@@ -37,29 +37,20 @@ def _wrap(a):
 MAX_VALUE = 1e100
 
 
-def _vector(value, name: str, size: int, what: str, nonneg: bool = False):
-    """``value`` if it is ``size`` finite numbers of magnitude at most :data:`MAX_VALUE` (``nonneg``:
-    and >= 0; ``what`` says what they are), else an :class:`InputError` naming ``name`` and the shape
-    wanted. The public helpers' check (the filter's per-step path calls the unchecked ones): a float
-    array or a list or tuple of floats is returned as it is (the arithmetic is that of the unchecked
-    helpers on it), anything else as a new float array."""
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
-        a, vals = value, value.tolist()
-    elif type(value) in (list, tuple) and len(value) == size and all(type(e) is float for e in value):
-        a, vals = value, value
-    else:
-        try:
-            a = float_array(value, name)
-        except InputError:
-            raise InputError(f"{name} must be {what}, got {reprlib.repr(value)}") from None
-        if a.shape != (size,):
-            raise InputError(f"{name} must be {what}: an array of shape ({size},), got shape {a.shape}")
-        vals = a.tolist()
-    lo = 0.0 if nonneg else -MAX_VALUE
-    for e in vals:
-        if not lo <= e <= MAX_VALUE:  # (False for NaN)
-            raise InputError(f"{name} must be {what}, finite and of magnitude at most {MAX_VALUE:g}, "
-                             f"got {reprlib.repr(value)}")
+def _vector(value, name: str, size: int, what: str, nonneg: bool = False) -> np.ndarray:
+    """``value`` as a float array of ``size`` finite numbers of magnitude at most :data:`MAX_VALUE`
+    (``nonneg``: and >= 0; ``what`` says what they are), else an :class:`InputError` naming ``name``
+    and the shape wanted. The public helpers' check (the filter's per-step path calls the unchecked
+    ones)."""
+    try:
+        a = float_array(value, name)
+    except InputError:
+        raise InputError(f"{name} must be {what}, got {reprlib.repr(value)}") from None
+    if a.shape != (size,):
+        raise InputError(f"{name} must be {what}: an array of shape ({size},), got shape {a.shape}")
+    if not np.all((a >= (0.0 if nonneg else -MAX_VALUE)) & (a <= MAX_VALUE)):   # (False for NaN)
+        raise InputError(f"{name} must be {what}, finite and of magnitude at most {MAX_VALUE:g}, "
+                         f"got {reprlib.repr(value)}")
     return a
 
 
@@ -75,11 +66,7 @@ def motion_model(x: np.ndarray, u, dt: float):
     """Eq. 4.20 (4.21 when ``omega ~ 0``): next pose, ``J_x`` (Eq. 4.25) and ``J_u`` (Eq. 4.26) from
     pose ``x = (x, y, theta)``, control ``u = (v, omega)`` and time step ``dt > 0`` (numbers of
     magnitude at most :data:`MAX_VALUE`; else an :class:`InputError`)."""
-    x = _pose(x)
-    u = _control(u)
-    if not (type(dt) is float and 0.0 < dt <= MAX_VALUE):  # (the common case, at once)
-        dt = check_range("dt", dt, 0.0, MAX_VALUE, lo_open=True)
-    return _motion_model(x, u, dt)
+    return _motion_model(_pose(x), _control(u), check_range("dt", dt, 0.0, MAX_VALUE, lo_open=True))
 
 
 def _motion_model(x, u, dt: float):

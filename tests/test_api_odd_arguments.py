@@ -490,3 +490,23 @@ def test_save_figure_takes_what_matplotlib_writes_whatever_the_backend(tmp_path)
                           "MPLBACKEND": "pdf"}, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "x.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("make", ["EventIndex", "building"])
+def test_an_index_name_leaves_room_for_its_journal(tmp_path, make):
+    """Names of 227-247 bytes failed ("unable to open database file": the temporary name plus
+    "-journal" was too long); longer ones were made and then failed at the first write."""
+    import contextlib
+
+    import artmotion.app.index as index
+
+    def opened(path):
+        return index.EventIndex(path) if make == "EventIndex" else index.building(path)
+
+    for n in (233, 247):
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(opened(tmp_path / ("n" * (n - 7) + ".sqlite")))
+    with pytest.raises(InputError, match="at most 247 bytes"):
+        with opened(tmp_path / ("n" * 241 + ".sqlite")):
+            pass
+    assert sorted(len(p.name) for p in tmp_path.iterdir()) == [233, 247]

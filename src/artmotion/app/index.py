@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from artmotion.errors import InputError, check_bool
+from artmotion.io.atomic import NAME_MAX
 from artmotion.io.files import as_path, check_text, read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
@@ -171,6 +172,17 @@ class Hit:
         return asdict(self)
 
 
+#: bytes SQLite adds to a database's name for its journal ("-journal")
+JOURNAL = len("-journal")
+
+
+def _check_name(path: Path) -> None:
+    """An index written at ``path`` needs a name SQLite's journal beside it can take."""
+    if len(os.fsencode(path.name)) > NAME_MAX - JOURNAL:
+        raise InputError(f"an index's file name may have at most {NAME_MAX - JOURNAL} bytes (SQLite writes its "
+                         "journal beside it, named NAME-journal)", path=path)
+
+
 class EventIndex:
     """The SQLite event index: ``EventIndex(path).add_run(run_dir)``, ``.search(query)``."""
 
@@ -180,6 +192,8 @@ class EventIndex:
         (listing, searching) and never creates it."""
         self.path = as_path(path, "an index")
         self.write = check_bool("write", write)
+        if self.write:
+            _check_name(self.path)
         if not self.path.exists():
             if not write:
                 raise InputError("no such index (add runs with 'artmotion index add')", path=self.path)
@@ -532,13 +546,10 @@ def _create_index(path: Path) -> None:
     from artmotion.io.atomic import NameTaken, atomic_path
 
     try:
-        with atomic_path(path, suffix=".sqlite", replace=False) as tmp:
+        with atomic_path(path, suffix=".sqlite", replace=False, reserve=JOURNAL) as tmp:
             tmp.unlink()                        # SQLite creates the file itself
             conn = sqlite3.connect(tmp)
             try:
-                # (no journal file: its name, the temporary's plus "-journal", may be too long; a
-                # failure leaves the temporary file, which is removed)
-                conn.execute("PRAGMA journal_mode = MEMORY")
                 conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                 conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
                 conn.executescript(SCHEMA)
@@ -563,12 +574,13 @@ def building(path: str | os.PathLike):
     from artmotion.io.atomic import NameTaken, atomic_path
 
     path = Path(path)
+    _check_name(path)
     if path.exists():
         with EventIndex(path, write=True) as idx:
             yield idx
         return
     try:
-        with atomic_path(path, suffix=".sqlite", replace=False) as tmp:
+        with atomic_path(path, suffix=".sqlite", replace=False, reserve=JOURNAL) as tmp:
             tmp.unlink()                        # SQLite creates the file itself
             with EventIndex(tmp, write=True) as idx:
                 yield idx

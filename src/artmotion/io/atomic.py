@@ -176,27 +176,28 @@ def _renamed(exc: InputError, tmp: Path, path: Path) -> InputError:
 NAME_MAX = 255
 
 
-def _fitting(prefix: str, suffix: str) -> tuple[str, str]:
+def _fitting(prefix: str, suffix: str, reserve: int = 0) -> tuple[str, str]:
     """``prefix`` cut (at a character) so that ``prefix + 8 characters + suffix`` fits in
-    :data:`NAME_MAX` bytes: a 246-character video name made the temporary name of its run folder
-    too long ("File name too long") although the folder's own name fitted. A ``suffix`` over 32
-    bytes is no file type's extension (``a.bbb…``): it becomes ``.tmp``."""
+    :data:`NAME_MAX` bytes (less ``reserve``, for names a writer derives from it, such as SQLite's
+    ``-journal``): a 246-character video name made the temporary name of its run folder too long
+    ("File name too long") although the folder's own name fitted. A ``suffix`` over 32 bytes is no
+    file type's extension (``a.bbb…``): it becomes ``.tmp``."""
     if len(os.fsencode(suffix)) > 32:
         suffix = ".tmp"
-    room = NAME_MAX - 8 - len(os.fsencode(suffix))
+    room = NAME_MAX - 8 - len(os.fsencode(suffix)) - reserve
     while prefix and len(os.fsencode(prefix)) > room:
         prefix = prefix[:-1]
     return prefix, suffix
 
 
-def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path]) -> Path:
+def _fresh(parent: Path, prefix: str, suffix: str, folder: bool, made: list[Path], reserve: int = 0) -> Path:
     """Create a new, empty file (or ``folder``) of a random name ``prefix + 8 characters + suffix``
     in ``parent``, its permissions those of any new file (the umask's; ``mkstemp``'s 0600 would make
     outputs private to their writer). The name is put in ``made`` *before* it is created, so that
     a caller's clean-up removes it even when a signal interrupts right after the creation (the
     caller's ``try`` must hold this call); a name that turns out to be taken is removed from
     ``made`` before the next one is tried."""
-    prefix, suffix = _fitting(prefix, suffix)
+    prefix, suffix = _fitting(prefix, suffix, reserve)
     for _ in range(1000):
         name = parent / f"{prefix}{os.urandom(4).hex()}{suffix}"
         made[:] = [name]
@@ -256,7 +257,8 @@ class NameTaken(InputError):
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None, replace: bool = True) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, suffix: str | None = None, replace: bool = True,
+                reserve: int = 0) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` if the block succeeds.
 
     Use for writers that want a file name (OpenCV's VideoWriter, matplotlib's savefig, SQLite).
@@ -264,13 +266,14 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None, replace: boo
     A failure or an interruption at any point, the temporary name's creation included, leaves
     nothing behind. ``replace=False``: ``path`` is claimed only if nothing is there by then (another
     process may have made it meanwhile), else :class:`NameTaken` and nothing is written.
+    ``reserve``: bytes the temporary name leaves free for names the writer derives from it.
     """
     folders: list[Path] = []
     path = _prepare(path, folders)
     suffix = path.suffix if suffix is None else suffix
     made: list[Path] = []
     with _undone_on_failure(path, made, folders):
-        tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made)
+        tmp_path = _fresh(path.parent, f".{path.name}.", ".tmp" + suffix, False, made, reserve)
         yield tmp_path
         if replace:
             os.replace(tmp_path, path)

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from artmotion.errors import InputError, check_bool
-from artmotion.io.atomic import NAME_MAX
+from artmotion.io.atomic import NAME_MAX, NameTaken, atomic_path
 from artmotion.io.files import as_path, check_text, read_head
 
 #: ``PRAGMA application_id`` of an artmotion index ("ARMT"): a file without it is not ours
@@ -543,8 +543,6 @@ def _create_index(path: Path) -> None:
     """A new, empty index at ``path``, built under a temporary name and linked into place: a
     failure (a full disk) leaves nothing, not a file that is no index (it was made in place); an
     index another process made there meanwhile is kept."""
-    from artmotion.io.atomic import NameTaken, atomic_path
-
     try:
         with atomic_path(path, suffix=".sqlite", replace=False, reserve=JOURNAL) as tmp:
             tmp.unlink()                        # SQLite creates the file itself
@@ -571,8 +569,6 @@ def building(path: str | os.PathLike):
     other process created an index there meanwhile: the name is claimed with a link, which never
     replaces a file (two commands creating one index at once each reported their runs added, and
     the last rename left only its own), else :class:`IndexAppeared`."""
-    from artmotion.io.atomic import NameTaken, atomic_path
-
     path = Path(path)
     _check_name(path)
     if path.exists():

@@ -187,8 +187,9 @@ class EventIndex:
     """The SQLite event index: ``EventIndex(path).add_run(run_dir)``, ``.search(query)``."""
 
     def __init__(self, path: str | os.PathLike, write: bool = True):
-        """Open the index at ``path`` (which must be an artmotion index, or absent: then it is
-        created; :func:`building` creates it atomically); ``write=False`` opens it read-only
+        """Open the index at ``path`` (which must be an artmotion index, or absent: then an empty
+        one is made under a temporary name and linked into place; :func:`building` makes it only
+        if a whole block of additions succeeds); ``write=False`` opens it read-only
         (listing, searching) and never creates it."""
         self.path = as_path(path, "an index")
         self.write = check_bool("write", write)

@@ -130,6 +130,10 @@ def test_grounder_refuses_images_and_indices_it_cannot_use(small_dataset):
 
     first = next(csv.DictReader(open(small_dataset / "index.csv")))["image"]
     assert len(g.image_to_speech(read_image(small_dataset / first))[1]) == 2
+    from artmotion.language.grounding.features import visual_features
+
+    with pytest.raises(InputError, match="image must be a BGR uint8 image"):    # (cv2.error inside)
+        visual_features(np.zeros((64, 64), np.uint8))
 
 
 def _write_index(folder, rows):

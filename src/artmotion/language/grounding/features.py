@@ -30,6 +30,7 @@ import pyefd
 
 from artmotion.errors import InputError
 from artmotion.io.files import check_riff_size, read_head
+from artmotion.io.media import check_frame
 
 HARMONICS = 20
 N_MFCC = 13
@@ -151,7 +152,8 @@ def color_feature(img_bgr: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def visual_features(img_bgr: np.ndarray, *, where: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(colour (3,), shape (80,))`` features of the image of one shape."""
+    """``(colour (3,), shape (80,))`` features of the image of one shape (a BGR uint8 image)."""
+    check_frame(img_bgr, "image")      # (a grey or float image failed inside OpenCV)
     mask = segment_shape(img_bgr, where=where)
     try:
         shape = shape_descriptor(outer_contour(mask)).ravel()

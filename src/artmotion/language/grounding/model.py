@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from artmotion.errors import InputError
-from artmotion.io.media import check_frame, read_image
+from artmotion.io.media import read_image
 from artmotion.language.grounding.features import audio_feature, render_shape, visual_features
 from artmotion.language.grounding.sparse import CompositionalSparse
 
@@ -59,11 +59,7 @@ class Grounder:
     def image_to_speech(self, image: str | os.PathLike | np.ndarray) -> tuple[list[np.ndarray], list[str]]:
         """Audio features generated for each word segment, and the nearest known word of each."""
         self._check_fitted()
-        if isinstance(image, np.ndarray):
-            check_frame(image, "image")
-            img = image
-        else:
-            img = read_image(image)
+        img = image if isinstance(image, np.ndarray) else read_image(image)
         c, s = visual_features(img, where=None if isinstance(image, np.ndarray) else str(image))
         segs = [g[0] for g in self.model_.visual_to_audio([c[None], s[None]])]
         words = []

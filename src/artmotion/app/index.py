@@ -540,27 +540,34 @@ class IndexAppeared(Exception):
     the index that appeared)."""
 
 
+def _new_index(tmp: Path, path: Path) -> None:
+    """An empty index written at the temporary name ``tmp`` (an empty file :func:`atomic_path`
+    made) of the index ``path``, named in a failure's message."""
+    tmp.unlink()                        # SQLite creates the file itself
+    try:
+        conn = sqlite3.connect(tmp)
+        try:
+            conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+            conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            conn.executescript(SCHEMA)
+            conn.commit()
+        finally:
+            conn.close()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"cannot create index: {exc}", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot create index: {exc.strerror}", path=path) from None
+
+
 def _create_index(path: Path) -> None:
     """A new, empty index at ``path``, built under a temporary name and linked into place: a
     failure (a full disk) leaves nothing, not a file that is no index (it was made in place); an
     index another process made there meanwhile is kept."""
     try:
         with atomic_path(path, suffix=".sqlite", replace=False, reserve=JOURNAL) as tmp:
-            tmp.unlink()                        # SQLite creates the file itself
-            conn = sqlite3.connect(tmp)
-            try:
-                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
-                conn.executescript(SCHEMA)
-                conn.commit()
-            finally:
-                conn.close()
+            _new_index(tmp, path)
     except NameTaken:
         pass
-    except sqlite3.DatabaseError as exc:
-        raise InputError(f"cannot create index: {exc}", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot create index: {exc.strerror}", path=path) from None
 
 
 @contextlib.contextmanager
@@ -578,7 +585,7 @@ def building(path: str | os.PathLike):
         return
     try:
         with atomic_path(path, suffix=".sqlite", replace=False, reserve=JOURNAL) as tmp:
-            tmp.unlink()                        # SQLite creates the file itself
+            _new_index(tmp, path)
             with EventIndex(tmp, write=True) as idx:
                 yield idx
     except NameTaken:

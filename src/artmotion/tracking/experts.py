@@ -85,6 +85,11 @@ def box_gaussian(box, scale: float = 1.0) -> Gaussian:
 BELIEF_SYMMETRY = 1e-5
 
 
+def asymmetric(c: np.ndarray) -> bool:
+    """Whether the 2x2 covariance ``c`` is further from symmetric than :data:`BELIEF_SYMMETRY`."""
+    return abs(c[0, 1] - c[1, 0]) > BELIEF_SYMMETRY * (c[0, 0] + c[1, 1])
+
+
 def belief_problem(g) -> str | None:
     """What is wrong with ``g`` as an expert's belief (``None``: nothing): not a
     :class:`Gaussian`, a mean that is not finite, a covariance that is not finite and positive
@@ -98,7 +103,7 @@ def belief_problem(g) -> str | None:
     if not (0.0 < det < np.inf and c[0, 0] > 0 and np.isfinite(c).all()):
         return ("a covariance that is not finite and positive definite "
                 f"[[{c[0, 0]:g}, {c[0, 1]:g}], [{c[1, 0]:g}, {c[1, 1]:g}]]")
-    if abs(c[0, 1] - c[1, 0]) > BELIEF_SYMMETRY * (c[0, 0] + c[1, 1]):
+    if asymmetric(c):
         return f"a covariance that is not symmetric (off-diagonal entries {c[0, 1]:.7g} and {c[1, 0]:.7g})"
     return None
 

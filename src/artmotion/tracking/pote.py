@@ -13,7 +13,6 @@ import numpy as np
 
 from artmotion.errors import InputError
 from artmotion.tracking.experts import (
-    BELIEF_SYMMETRY,
     EXPERTS,
     BlobExpert,
     DetectionExpert,
@@ -24,6 +23,7 @@ from artmotion.tracking.experts import (
     Gaussian,
     KLTExpert,
     MotionExpert,
+    asymmetric,
     belief_problem,
     check_experts,
 )
@@ -64,12 +64,12 @@ def fuse(gaussians: Iterable[Gaussian | None]) -> Gaussian | None:
 def _information(a: np.ndarray) -> np.ndarray:
     """Inverse of a belief's 2x2 covariance (closed form), which must be finite and positive
     definite (checked on the way: a positive determinant and first entry, a finite determinant)
-    and symmetric (to :data:`~artmotion.tracking.experts.BELIEF_SYMMETRY`)."""
+    and symmetric (:func:`~artmotion.tracking.experts.asymmetric`)."""
     det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
     if not (0.0 < det < _INF and a[0, 0] > 0):
         raise InputError("a belief's covariance is not finite and positive definite: "
                          f"[[{a[0, 0]:g}, {a[0, 1]:g}], [{a[1, 0]:g}, {a[1, 1]:g}]]")
-    if abs(a[0, 1] - a[1, 0]) > BELIEF_SYMMETRY * (a[0, 0] + a[1, 1]):
+    if asymmetric(a):
         raise InputError(f"a belief's covariance is not symmetric: its off-diagonal entries {a[0, 1]:.7g} and "
                          f"{a[1, 0]:.7g} differ")
     return np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det

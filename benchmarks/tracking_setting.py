@@ -25,7 +25,7 @@ import argparse
 import itertools
 import multiprocessing as mp
 import sys
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,6 +57,8 @@ def _prepare(cache: Path) -> None:
 def _score(job: tuple[str, dict, str]) -> tuple[str, str, dict]:
     label, changes, item = job
     dets, every = _DATA[item]
+    bools = {f.name for f in fields(TrackerConfig) if f.type in ("bool", bool)}
+    changes = {k: bool(v) if k in bools else v for k, v in changes.items()}
     return label, item, track_scores(item.partition(":")[0], dets, DEFAULT_EXPERTS, every,
                                      replace(TrackerConfig(), **changes))
 

@@ -658,6 +658,15 @@ def test_6_events_that_do_not_fit_are_errors(tmp_path, event, needle):
     assert_one_line_error(code, err, "ev.jsonl:2", needle)
 
 
+def test_6_describe_names_a_detections_file_as_such(tmp_path):
+    """A detections file has several id -1 rows in a frame: the answer says they are detections
+    (track them first), not that id -1 appears twice in a frame."""
+    det = tmp_path / "det.txt"
+    det.write_text("1,-1,10,10,20,40,0.9,-1,-1,-1\n1,-1,50,10,20,40,0.8,-1,-1,-1\n2,-1,12,10,20,40,0.9,-1,-1,-1\n")
+    code, _, err = call("describe", det)
+    assert_one_line_error(code, err, "det.txt", "track them first")
+
+
 def test_6_duplicate_csv_columns_and_a_folder_for_detections(tmp_path):
     res = tmp_path / "res.txt"
     res.write_text("\n".join(inp.gt_rows()) + "\n")

@@ -67,10 +67,10 @@ def describe_cmd(
         typer.echo(f"{results}: MOT16/17 ground truth: {len(people)} of {len(rows)} rows described (pedestrians "
                    "with consider = 1)", err=True)
         rows = people
-    check_ids(rows, "results", results)   # one box per track and frame (a second would be dropped unsaid)
-    if len(rows) and (rows[:, 1] == -1).any():
+    if len(rows) and (rows[:, 1] == -1).any():   # before check_ids: detections repeat -1 within a frame
         raise InputError(f"id -1 on {int((rows[:, 1] == -1).sum())} rows: MOTChallenge's 'no identity' (detections, "
                          "not tracks): track them first (artmotion track)", path=results)
+    check_ids(rows, "results", results)   # one box per track and frame (a second would be dropped unsaid)
     classes = parse_classes(cls)
     evs = read_events(events) if events is not None else None
     pose_seq = None

@@ -35,6 +35,7 @@ def test_read_mot_pads_and_roundtrips(tmp_path):
         ("0,-1,10,20,5,5,1\n", "positive integer", 1),
         ("1,-1,10,20,5,5,1\n2,,10,20,5,5,1\n", "empty field 2", 2),  # would shift every column
         ("1,-1,1_0,20,5,5,1\n", "non-numeric", 1),  # not ten, as Python's float() would have it
+        ("1,1,1000001,10,5,5\n", "box 1000001,10,5,5 out of range", 1),  # not 1e+06, the bound itself
     ],
 )
 def test_read_mot_errors_name_file_and_line(tmp_path, text, needle, line):

@@ -164,9 +164,19 @@ def test_unknown_detector(run_cli, tmp_path):
 
 
 @pytest.mark.parametrize("k", ["0", "-1", "1.5", "101", "nan"])
-def test_bad_detect_every(run_cli, k):
-    code, _, err = run_cli("track", str(SAMPLE), "--detect-every", k)
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "detect-every" in err
+@pytest.mark.parametrize("command", ["track", "run"])
+def test_bad_detect_every(run_cli, tmp_path, command, k):
+    out = ("--out", str(tmp_path / "run")) if command == "run" else ()
+    code, _, err = run_cli(command, str(SAMPLE), *out, "--detect-every", k)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--detect-every" in err
+
+
+def test_the_python_api_names_its_own_argument():
+    """track() is called from Python: its error names ``detect_every``, not the CLI's option."""
+    from artmotion.tracking import track
+
+    with pytest.raises(InputError, match="^detect_every must"):
+        track(SAMPLE, detect_every=0)
 
 
 class _Truth(Detector):

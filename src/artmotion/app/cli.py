@@ -9,7 +9,7 @@ from typing import Optional
 
 import typer
 
-from artmotion.errors import InputError
+from artmotion.errors import InputError, check_range
 from artmotion.tracking.config import DETECT_EVERY
 
 DEFAULT_DB = "artmotion-index.sqlite"
@@ -106,6 +106,7 @@ def run_cmd(
     from artmotion.app.pipeline import run_pipeline
     from artmotion.tracking.api import NO_DETECTIONS, too_short
 
+    check_range("--detect-every", detect_every, 1, 100, integer=True)   # (run_pipeline names its argument)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     if db is not None:
         from artmotion.io import check_text
@@ -237,7 +238,7 @@ def batch_cmd(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from artmotion.app.batch import BatchInterrupted, run_batch
-    from artmotion.errors import ArtmotionError, check_range, one_line
+    from artmotion.errors import ArtmotionError, one_line
 
     check_range("--workers", workers, 1, 4 * (os.cpu_count() or 1), integer=True)  # (4 processes per core at most)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the batch

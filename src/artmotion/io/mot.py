@@ -69,7 +69,7 @@ def read_mot(path: str | os.PathLike, *, require_sorted: bool = False, allow_emp
         if w <= 0 or h <= 0:
             raise InputError(f"non-positive box size {w:g}x{h:g}", path=path, line=lineno)
         if max(abs(x), abs(y), w, h) > MAX_COORD:
-            raise InputError(f"box {x:g},{y:g},{w:g},{h:g} out of range: coordinates and sizes must lie in "
+            raise InputError(f"box {x:.10g},{y:.10g},{w:.10g},{h:.10g} out of range: coordinates and sizes must lie in "
                              f"[-{MAX_COORD:g}, {MAX_COORD:g}] pixels", path=path, line=lineno)
         if require_sorted and frame < last_frame:
             raise InputError(f"frame {int(frame)} out of order (after frame {int(last_frame)})", path=path, line=lineno)

@@ -270,7 +270,7 @@ def eval_cmd(
                                               help="Comma-separated Euler-angle columns of the stem "
                                                    "(default yaw,pitch,roll when present)."),
     euler: str = typer.Option("ZYX", "--euler", help="Euler convention of those columns (SciPy; upper case = intrinsic)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Folder for tables (eval.md, eval.json), predictions and plots."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for tables (eval.md, eval.json) and predictions."),
     method: str = typer.Option("auto", "--method", help="auto, exact or sparse GP."),
 ):
     """Cross-validated errors per feature (Table 3.1), unseen-sequence errors (Table 3.2), 3-sigma coverage."""

@@ -194,7 +194,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
         raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
     elif det is not None:
         raise InputError("give detections (det) or a detector of your own, not both")
-    check_range("--detect-every", detect_every, 1, 100, integer=True)
+    check_range("detect_every", detect_every, 1, 100, integer=True)
     if video is not None:
         from artmotion.io.media import cv2_name
 

@@ -369,8 +369,8 @@ def evaluate(gt, res, iou_threshold: float = 0.5, per_alpha: bool = False, rules
     MOT16/17's class column, :func:`gt_rules`).
 
     Returns a dict of plain Python numbers: ``MOTA, MOTP, MODA, IDF1, IDP, IDR, IDTP, IDFP, IDFN,
-    HOTA, DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MT, PT, ML, FM, IDS, FP, FN, TP, GT``
-    (ground-truth boxes evaluated), ``GT_IDS`` (ground-truth tracks), ``Precision, Recall,
+    HOTA, HOTA(0), DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MT, PT, ML, FM, IDS, FP, FN, TP``,
+    ``GT`` (ground-truth tracks), ``GT_DETS`` (ground-truth boxes evaluated), ``Precision, Recall,
     Frames`` (the last frame number); with ``per_alpha`` also the lists ``HOTA_alpha, DetA_alpha,
     AssA_alpha`` over :data:`HOTA_ALPHAS`. Every other value is a plain ``int`` or ``float``.
     Raises :class:`~artmotion.errors.InputError` for unreadable or inconsistent input.

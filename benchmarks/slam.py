@@ -51,6 +51,7 @@ COMPONENTS = {
     "undecided_var": (0.0, 0.01, "undecided landmarks drift as a random walk (0.01 m^2/step x P(moving))"),
     "gating": (True, False, "chi^2 gate on every sighting"),
     "gate": (0.01, 0.001, "the gate's false-rejection probability (1 %; 0.1 % was the first default)"),
+    "drift_window": (3, 0, "the gate also tests the sum of a landmark's last 3 innovations (0: each sighting alone)"),
 }
 
 

@@ -302,7 +302,13 @@ class EKFSlam:
     ``gating`` (default: on when articulated) applies a chi^2 (2 dof) validation gate that a
     consistent sighting fails with probability ``gate`` (1 %: chosen by leave-one-world-out); a
     landmark whose sightings fail it three times in a row leaves the state until its next sighting
-    (and if Algorithm 1 had decided its model, it learns it afresh).
+    (and if Algorithm 1 had decided its model, it learns it afresh). With ``drift_window`` ``W``
+    (default 3; 0 or 1: off) a sighting also fails the gate when the sum of the landmark's last
+    ``W`` innovations (this one and the ``W - 1`` before it that passed) fails the same test
+    against the sum of their covariances: a consistent filter's innovations are white, so their
+    sum has that covariance, while a landmark that drifts slowly (a cart or a door fused as static
+    while each sighting still passes) adds up innovations of one sign. Chosen by
+    leave-one-world-out (docs/articulation.md).
     """
 
     def __init__(self, x0, dt: float, alphas, range_std: float, bearing_std: float, n_max: int,
@@ -310,7 +316,7 @@ class EKFSlam:
                  point_noise: float = 0.15, max_radius: float = 5.0, motion_var: float = 0.01,
                  accel: float | None = 0.1, gating: bool | None = None, delayed: bool = False,
                  undecided_var: float = 0.0, joint_shift: bool = True, gate: float = 0.01,
-                 joint_shape: bool = True, joint_curve: bool = True):
+                 joint_shape: bool = True, joint_curve: bool = True, drift_window: int = 3):
         x0, alphas, n_max, min_samples = _check_arguments(
             x0, dt, alphas, range_std, bearing_std, n_max, articulated=articulated, threshold=threshold,
             min_samples=min_samples, point_noise=point_noise, max_radius=max_radius, motion_var=motion_var,
@@ -341,6 +347,8 @@ class EKFSlam:
         self.gating = articulated if gating is None else gating
         self.gate = gate_threshold(gate)
         self.strikes: dict[int, int] = {}
+        self.drift_window = check_range("drift_window", drift_window, 0, 1000, integer=True)
+        self.innovations: dict[int, list] = {}
         self.reverted: list = []
         self.k = 0
 
@@ -434,7 +442,20 @@ class EKFSlam:
                 # (or started moving); it leaves the state
                 idx = np.r_[0:3, b.start:b.start + b.dim]  # H is zero elsewhere
                 Si = Hi[:, idx] @ P[np.ix_(idx, idx)] @ Hi[:, idx].T + self.R1
-                if yi @ np.linalg.solve(Si, yi) > self.gate:
+                fail = yi @ np.linalg.solve(Si, yi) > self.gate
+                if not fail and self.drift_window > 1:
+                    # the innovations of a consistent filter are white: their sum over the last
+                    # sightings has the sum of their covariances; a landmark that drifts (a slow
+                    # cart fused as static) adds up innovations of one sign
+                    past = self.innovations.setdefault(i, [])
+                    if len(past) >= self.drift_window - 1:
+                        ys = yi + sum(y for y, _ in past)
+                        Ss = Si + sum(S for _, S in past)
+                        fail = ys @ np.linalg.solve(Ss, ys) > self.gate
+                    if not fail:
+                        past.append((yi, Si))
+                        del past[:-(self.drift_window - 1)]
+                if fail:
                     self.strikes[i] = self.strikes.get(i, 0) + 1
                     if self.strikes[i] >= 3:
                         rejected.append(i)
@@ -474,6 +495,7 @@ class EKFSlam:
             if other.start > s0:
                 other.start -= d
         self.strikes.pop(i, None)
+        self.innovations.pop(i, None)
 
     def _append(self, i, block: _Block, value, Gx_full, var_extra):
         """Add ``block`` at the end of the state: ``value`` (dim,), ``Gx_full`` (dim x 3) maps the
@@ -492,6 +514,7 @@ class EKFSlam:
         self.P[:n, sl] = cross.T
         self.P[sl, sl] = Gx_full @ self.P[:3, :3] @ Gx_full.T + var_extra
         self.blocks[i] = block
+        self.innovations.pop(i, None)
         self.n = n + d
         self.decided_at[i] = self.k
 

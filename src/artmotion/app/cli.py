@@ -10,7 +10,7 @@ from typing import Optional
 import typer
 
 from artmotion.errors import InputError, check_range
-from artmotion.tracking.config import DETECT_EVERY
+from artmotion.tracking.config import DETECT_EVERY, check_detect_every
 
 DEFAULT_DB = "artmotion-index.sqlite"
 
@@ -106,7 +106,7 @@ def run_cmd(
     from artmotion.app.pipeline import run_pipeline
     from artmotion.tracking.api import NO_DETECTIONS, too_short
 
-    check_range("--detect-every", detect_every, 1, 100, integer=True)   # (run_pipeline names its argument)
+    check_detect_every(detect_every, "--detect-every")   # (run_pipeline names its argument)
     db = _db_path(index) if index is not None else None       # a wrong index fails before the run
     if db is not None:
         from artmotion.io import check_text

@@ -14,7 +14,7 @@ import numpy as np
 from artmotion.errors import InputError, check_bool, check_range
 from artmotion.io.atomic import check_apart, check_writable
 from artmotion.io.sequence import Sequence, open_sequence
-from artmotion.tracking.config import DETECT_EVERY, TrackerConfig
+from artmotion.tracking.config import DETECT_EVERY, TrackerConfig, check_detect_every
 from artmotion.tracking.experts import check_experts
 from artmotion.tracking.mot import MultiObjectTracker
 from artmotion.tracking.online import OnlineTracker
@@ -93,7 +93,7 @@ def run_tracker(tracker: MultiObjectTracker, frames, detections: dict, reduce: i
         raise InputError(f"run_tracker needs a MultiObjectTracker, got {type(tracker).__name__}")
     reduce = check_range("reduce", reduce, 1, 100, integer=True)
     decode = check_range("decode", decode, 1, 100, integer=True)
-    detect_every = check_range("detect_every", detect_every, 1, 100, integer=True)
+    detect_every = check_detect_every(detect_every)
     if detector is None and not isinstance(detections, Mapping):
         raise InputError("detections must be a mapping of frame numbers to (N, 5) arrays x, y, w, h, score "
                          f"(a dict), got {type(detections).__name__}")
@@ -194,7 +194,7 @@ def track(source, det=None, experts=DEFAULT_EXPERTS, online: bool = False, progr
         raise InputError(f"detector must be a name (auto, ssdlite, hog) or a Detector, got {type(detector).__name__}")
     elif det is not None:
         raise InputError("give detections (det) or a detector of your own, not both")
-    check_range("detect_every", detect_every, 1, 100, integer=True)
+    check_detect_every(detect_every)
     if video is not None:
         from artmotion.io.media import cv2_name
 

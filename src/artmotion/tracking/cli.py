@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from artmotion.tracking.config import DETECT_EVERY
+from artmotion.tracking.config import DETECT_EVERY, check_detect_every
 
 
 def eval_command(
@@ -68,7 +68,7 @@ def track_command(
     import contextlib
     import sys
 
-    from artmotion.errors import InputError, check_range
+    from artmotion.errors import InputError
     from artmotion.io import atomic_path, check_apart, check_writable, write_events, write_mot
     from artmotion.io.media import depth_note
     from artmotion.tracking import DEFAULT_EXPERTS, open_sequence, track
@@ -76,7 +76,7 @@ def track_command(
 
     if video and not video.lower().endswith(".mp4"):
         raise InputError("--video writes an MP4 file: give a name ending in .mp4", path=video)
-    check_range("--detect-every", detect_every, 1, 100, integer=True)   # (track() names its argument)
+    check_detect_every(detect_every, "--detect-every")   # (track() names its argument)
     seq = open_sequence(source)  # (opened once: track() takes it as it is)
     seq.set_bits(bits)
     # before the work, so that no output is written when one cannot be (nor over an input: the

@@ -14,10 +14,16 @@ from typing import Any
 
 from artmotion.errors import InputError, check_range
 
-__all__ = ["DETECT_EVERY", "TrackerConfig"]
+__all__ = ["DETECT_EVERY", "TrackerConfig", "check_detect_every"]
 
 #: the built-in detector runs on every this many frames (docs/tracking.md, "Built-in detector")
 DETECT_EVERY = 2
+
+
+def check_detect_every(k, name: str = "detect_every") -> int:
+    """``k`` (every k-th frame detected) checked: a whole number in [1, 100]; ``name`` is what the
+    message calls it (the Python argument, or a command's ``--detect-every``)."""
+    return check_range(name, k, 1, 100, integer=True)
 
 
 #: what ``experts_when`` may say

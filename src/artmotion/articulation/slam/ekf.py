@@ -514,7 +514,6 @@ class EKFSlam:
         self.P[:n, sl] = cross.T
         self.P[sl, sl] = Gx_full @ self.P[:3, :3] @ Gx_full.T + var_extra
         self.blocks[i] = block
-        self.innovations.pop(i, None)
         self.n = n + d
         self.decided_at[i] = self.k
 
